@@ -1,0 +1,1 @@
+//! gzip helpers (to be written).

@@ -1,0 +1,24 @@
+//! # septa
+//!
+//! Consistent manifold interface meshes from segmented label volumes.
+//!
+//! A label volume (one tissue label per voxel) goes through four stages, each a
+//! module with a small public API:
+//!
+//! 1. [`io`] reads it (NIfTI, NRRD, MetaImage, raw) into a [`volume::LabelVolume`]
+//!    with its physical geometry;
+//! 2. [`preprocess`] finds critical (non-manifold) edges and vertices and removes
+//!    them by fattening on virtual 5³ / 7³ subvoxels;
+//! 3. [`extract`] builds one manifold patch per pair of touching labels from
+//!    VESTA voxel-face vectors; patches share their boundaries exactly;
+//! 4. remeshing smooths and remeshes the patches to a target edge length.
+//!
+//! [`mesh`] holds the output type and the validator of the invariants every
+//! output keeps.
+
+pub mod config;
+pub mod error;
+pub mod io;
+pub mod volume;
+
+pub use error::{Error, Result};
