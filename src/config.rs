@@ -135,10 +135,18 @@ impl Config {
         let mut seen_names: BTreeMap<String, i64> = BTreeMap::new();
         for (k, name) in raw.labels {
             let value: i64 = k.trim().parse().map_err(|_| {
-                Error::config(path, format!("labels.\"{k}\""), "label keys must be integer label values, e.g. `3 = \"myocardium\"`")
+                Error::config(
+                    path,
+                    format!("labels.\"{k}\""),
+                    "label keys must be integer label values, e.g. `3 = \"myocardium\"`",
+                )
             })?;
             if name.trim().is_empty() {
-                return Err(Error::config(path, format!("labels.{k}"), "a label name must not be empty"));
+                return Err(Error::config(
+                    path,
+                    format!("labels.{k}"),
+                    "a label name must not be empty",
+                ));
             }
             if let Some(other) = seen_names.insert(name.clone(), value) {
                 return Err(Error::config(
@@ -148,7 +156,11 @@ impl Config {
                 ));
             }
             if names.insert(value, name).is_some() {
-                return Err(Error::config(path, format!("labels.{k}"), format!("label value {value} is named twice")));
+                return Err(Error::config(
+                    path,
+                    format!("labels.{k}"),
+                    format!("label value {value} is named twice"),
+                ));
             }
         }
         Ok(Config {
@@ -168,11 +180,15 @@ impl Config {
 
     /// A name for a label value: its configured name, else `label<value>`.
     pub fn display_name(&self, value: i64) -> String {
-        self.name_of(value).map(str::to_string).unwrap_or_else(|| format!("label{value}"))
+        self.name_of(value)
+            .map(str::to_string)
+            .unwrap_or_else(|| format!("label{value}"))
     }
 
     fn path_for_messages(&self) -> PathBuf {
-        self.path.clone().unwrap_or_else(|| PathBuf::from("<config>"))
+        self.path
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("<config>"))
     }
 
     /// The value a reference stands for; `key` locates it in messages.
@@ -229,11 +245,18 @@ impl Config {
                     return Err(Error::config(
                         &path,
                         key,
-                        format!("label {} is also the separator `by` of this constraint", self.display_name(v)),
+                        format!(
+                            "label {} is also the separator `by` of this constraint",
+                            self.display_name(v)
+                        ),
                     ));
                 }
                 if members.contains(&v) {
-                    return Err(Error::config(&path, key, format!("label {} is listed twice", self.display_name(v))));
+                    return Err(Error::config(
+                        &path,
+                        key,
+                        format!("label {} is listed twice", self.display_name(v)),
+                    ));
                 }
                 members.push(v);
             }
@@ -308,10 +331,17 @@ impl Config {
         for (i, r) in self.priority.iter().enumerate() {
             let v = self.value_of(r, &format!("priority[{i}]"))?;
             if priority_values.contains(&v) {
-                return Err(Error::config(&path, format!("priority[{i}]"), format!("label {} is listed twice", self.display_name(v))));
+                return Err(Error::config(
+                    &path,
+                    format!("priority[{i}]"),
+                    format!("label {} is listed twice", self.display_name(v)),
+                ));
             }
             if !occurs(v) {
-                warnings.push(format!("priority: label {} does not occur in the volume", self.display_name(v)));
+                warnings.push(format!(
+                    "priority: label {} does not occur in the volume",
+                    self.display_name(v)
+                ));
             }
             priority_values.push(v);
         }
@@ -324,7 +354,9 @@ impl Config {
         let id = |v: i64| volume.id_of(v).expect("added above");
 
         let n = volume.label_count();
-        let mut rank: Vec<u32> = (0..n as u32).map(|i| i + priority_values.len() as u32).collect();
+        let mut rank: Vec<u32> = (0..n as u32)
+            .map(|i| i + priority_values.len() as u32)
+            .collect();
         for (i, &v) in priority_values.iter().enumerate() {
             if let Some(lid) = volume.id_of(v) {
                 rank[lid as usize] = i as u32;
@@ -351,7 +383,11 @@ impl Config {
 /// A volume whose value table also holds `extra` values (ids are remapped).
 pub fn with_extra_values(volume: LabelVolume, extra: &[i64]) -> LabelVolume {
     use rayon::prelude::*;
-    let missing: Vec<i64> = extra.iter().copied().filter(|&v| volume.id_of(v).is_none()).collect();
+    let missing: Vec<i64> = extra
+        .iter()
+        .copied()
+        .filter(|&v| volume.id_of(v).is_none())
+        .collect();
     if missing.is_empty() {
         return volume;
     }
@@ -359,9 +395,18 @@ pub fn with_extra_values(volume: LabelVolume, extra: &[i64]) -> LabelVolume {
     values.extend(missing);
     values.sort_unstable();
     values.dedup();
-    let remap: Vec<LabelId> = volume.values().iter().map(|v| values.binary_search(v).expect("kept") as LabelId).collect();
-    let ids = volume.ids().par_iter().map(|&i| remap[i as usize]).collect();
-    LabelVolume::from_ids(volume.dims(), ids, values, *volume.geometry()).expect("remap keeps validity")
+    let remap: Vec<LabelId> = volume
+        .values()
+        .iter()
+        .map(|v| values.binary_search(v).expect("kept") as LabelId)
+        .collect();
+    let ids = volume
+        .ids()
+        .par_iter()
+        .map(|&i| remap[i as usize])
+        .collect();
+    LabelVolume::from_ids(volume.dims(), ids, values, *volume.geometry())
+        .expect("remap keeps validity")
 }
 
 /// A separation constraint in dense ids.
@@ -412,7 +457,12 @@ mod tests {
     use crate::volume::{Dims, Geometry};
 
     fn vol(values: &[i64]) -> LabelVolume {
-        LabelVolume::from_values(Dims::new(values.len(), 1, 1).unwrap(), values, Geometry::identity()).unwrap()
+        LabelVolume::from_values(
+            Dims::new(values.len(), 1, 1).unwrap(),
+            values,
+            Geometry::identity(),
+        )
+        .unwrap()
     }
 
     const HEART: &str = r#"
@@ -440,7 +490,13 @@ by = "myo"
         assert_eq!(r.outside, 0);
         assert_eq!(r.rank[3], 0);
         assert!(r.rank[1] > r.rank[3]);
-        assert_eq!(r.separations, vec![SeparationIds { labels: vec![1, 2], by: 3 }]);
+        assert_eq!(
+            r.separations,
+            vec![SeparationIds {
+                labels: vec![1, 2],
+                by: 3
+            }]
+        );
         assert!(r.warnings.is_empty());
     }
 
@@ -456,14 +512,26 @@ by = "myo"
     #[test]
     fn errors_name_the_key() {
         let cases = [
-            ("[labels]\n1 = \"a\"\n[[separate]]\nlabels = [\"a\", \"zz\"]\nby = 5\n", "separate[0].labels[1]"),
-            ("[labels]\n1 = \"a\"\n2 = \"b\"\n[[separate]]\nlabels = [\"a\", \"b\"]\nby = \"a\"\n", "separator"),
-            ("[labels]\n1 = \"a\"\n[[separate]]\nlabels = [\"a\"]\nby = 3\n", "at least two"),
+            (
+                "[labels]\n1 = \"a\"\n[[separate]]\nlabels = [\"a\", \"zz\"]\nby = 5\n",
+                "separate[0].labels[1]",
+            ),
+            (
+                "[labels]\n1 = \"a\"\n2 = \"b\"\n[[separate]]\nlabels = [\"a\", \"b\"]\nby = \"a\"\n",
+                "separator",
+            ),
+            (
+                "[labels]\n1 = \"a\"\n[[separate]]\nlabels = [\"a\"]\nby = 3\n",
+                "at least two",
+            ),
             (
                 "[[separate]]\nlabels = [1, 2]\nby = 3\n[[separate]]\nlabels = [2, 1]\nby = 4\n",
                 "separated by label4 here but by label3",
             ),
-            ("[[separate]]\nlabels = [1, 2]\nby = 3\n[[separate]]\nlabels = [3, 1]\nby = 2\n", "contradictory"),
+            (
+                "[[separate]]\nlabels = [1, 2]\nby = 3\n[[separate]]\nlabels = [3, 1]\nby = 2\n",
+                "contradictory",
+            ),
             ("priority = [\"nope\"]\n", "priority[0]"),
             ("outside = \"nope\"\n", "outside"),
         ];

@@ -52,7 +52,11 @@ impl Error {
     }
 
     /// A wrong entry `key` in the config file `path`.
-    pub fn config(path: impl AsRef<Path>, key: impl Into<String>, problem: impl Into<String>) -> Self {
+    pub fn config(
+        path: impl AsRef<Path>,
+        key: impl Into<String>,
+        problem: impl Into<String>,
+    ) -> Self {
         Error::Config {
             path: path.as_ref().to_path_buf(),
             key: key.into(),

@@ -19,6 +19,9 @@
 pub mod config;
 pub mod error;
 pub mod io;
+pub mod phantom;
+pub mod preprocess;
+pub mod star;
 pub mod volume;
 
 pub use error::{Error, Result};

@@ -30,7 +30,8 @@ pub struct Geometry {
 
 impl Geometry {
     /// Direction cosines of the identity orientation (index axes = LPS axes).
-    pub const IDENTITY_DIRECTION: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    pub const IDENTITY_DIRECTION: [[f64; 3]; 3] =
+        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
     /// Unit spacing, zero origin, identity direction.
     pub fn identity() -> Self {
@@ -53,7 +54,9 @@ impl Geometry {
             let d = DVec3::from(direction[c]);
             let len = d.length();
             if !(len.is_finite() && len > 1e-12) {
-                return Err(Error::invalid(format!("direction of axis {c} is zero or not finite")));
+                return Err(Error::invalid(format!(
+                    "direction of axis {c} is zero or not finite"
+                )));
             }
             let col = d / len * spacing[c];
             for r in 0..3 {
@@ -132,7 +135,11 @@ impl Geometry {
     /// Unit LPS direction of each index axis (`direction()[c]` for axis `c`).
     pub fn direction(&self) -> [[f64; 3]; 3] {
         let m = self.linear();
-        [m.x_axis.normalize().to_array(), m.y_axis.normalize().to_array(), m.z_axis.normalize().to_array()]
+        [
+            m.x_axis.normalize().to_array(),
+            m.y_axis.normalize().to_array(),
+            m.z_axis.normalize().to_array(),
+        ]
     }
 
     /// Index coordinates (voxel centres at integers) → LPS millimetres.
@@ -212,10 +219,20 @@ mod tests {
     #[test]
     fn orientation_codes() {
         assert_eq!(Geometry::identity().orientation_code(), "LPS");
-        let ras = Geometry::from_ras_affine([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]]).unwrap();
+        let ras = Geometry::from_ras_affine([
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+        ])
+        .unwrap();
         assert_eq!(ras.orientation_code(), "RAS");
         // The ITK k-means head: -2 0 0 / 0 0 3 / 0 2 0 in RAS.
-        let lsa = Geometry::from_ras_affine([[-2.0, 0.0, 0.0, 0.0], [0.0, 0.0, 3.0, -254.0], [0.0, 2.0, 0.0, 0.0]]).unwrap();
+        let lsa = Geometry::from_ras_affine([
+            [-2.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 3.0, -254.0],
+            [0.0, 2.0, 0.0, 0.0],
+        ])
+        .unwrap();
         assert_eq!(lsa.orientation_code(), "LSA");
         assert_eq!(lsa.spacing(), [2.0, 2.0, 3.0]);
     }
@@ -224,7 +241,9 @@ mod tests {
     fn rejects_bad_spacing_and_singular() {
         assert!(Geometry::new([0.0, 1.0, 1.0], [0.0; 3], Geometry::IDENTITY_DIRECTION).is_err());
         assert!(Geometry::new([-1.0, 1.0, 1.0], [0.0; 3], Geometry::IDENTITY_DIRECTION).is_err());
-        assert!(Geometry::new([1.0, 1.0, f64::NAN], [0.0; 3], Geometry::IDENTITY_DIRECTION).is_err());
+        assert!(
+            Geometry::new([1.0, 1.0, f64::NAN], [0.0; 3], Geometry::IDENTITY_DIRECTION).is_err()
+        );
         let dup = [[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]];
         assert!(Geometry::new([1.0; 3], [0.0; 3], dup).is_err());
     }
@@ -233,7 +252,12 @@ mod tests {
     fn round_trip_rotated() {
         let c = 0.6f64;
         let s = 0.8f64;
-        let g = Geometry::new([0.5, 1.5, 2.5], [3.0, -4.0, 7.0], [[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]]).unwrap();
+        let g = Geometry::new(
+            [0.5, 1.5, 2.5],
+            [3.0, -4.0, 7.0],
+            [[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]],
+        )
+        .unwrap();
         let p = DVec3::new(3.0, 5.0, 7.0);
         let q = g.physical_to_index(g.index_to_physical(p));
         assert!((p - q).length() < 1e-12);

@@ -7,8 +7,10 @@
 //! that outputs can name labels by the values the user knows).
 
 mod geometry;
+mod padded;
 
 pub use geometry::Geometry;
+pub use padded::PaddedLabels;
 
 use crate::error::{Error, Result};
 use rayon::prelude::*;
@@ -43,7 +45,9 @@ impl Dims {
     pub fn new(nx: usize, ny: usize, nz: usize) -> Result<Self> {
         for (axis, n) in [nx, ny, nz].into_iter().enumerate() {
             if n == 0 {
-                return Err(Error::invalid(format!("dimension {axis} is 0: every extent must be at least 1")));
+                return Err(Error::invalid(format!(
+                    "dimension {axis} is 0: every extent must be at least 1"
+                )));
             }
             if n > MAX_AXIS {
                 return Err(Error::invalid(format!(
@@ -139,7 +143,10 @@ impl LabelVolume {
                 dims.len()
             )));
         }
-        let mut table: Vec<i64> = values.par_chunks(1 << 16).flat_map_iter(unique_sorted).collect();
+        let mut table: Vec<i64> = values
+            .par_chunks(1 << 16)
+            .flat_map_iter(unique_sorted)
+            .collect();
         table.par_sort_unstable();
         table.dedup();
         if table.len() > MAX_LABELS {
@@ -152,23 +159,45 @@ impl LabelVolume {
             .par_iter()
             .map(|v| table.binary_search(v).expect("value is in the table") as LabelId)
             .collect();
-        Ok(LabelVolume { dims, ids, values: table, geometry })
+        Ok(LabelVolume {
+            dims,
+            ids,
+            values: table,
+            geometry,
+        })
     }
 
     /// From dense ids and their value table. `values` must be strictly ascending
     /// and every id must index into it.
-    pub fn from_ids(dims: Dims, ids: Vec<LabelId>, values: Vec<i64>, geometry: Geometry) -> Result<Self> {
+    pub fn from_ids(
+        dims: Dims,
+        ids: Vec<LabelId>,
+        values: Vec<i64>,
+        geometry: Geometry,
+    ) -> Result<Self> {
         if ids.len() != dims.len() {
-            return Err(Error::invalid(format!("{} ids given for {} voxels", ids.len(), dims.len())));
+            return Err(Error::invalid(format!(
+                "{} ids given for {} voxels",
+                ids.len(),
+                dims.len()
+            )));
         }
-        if values.is_empty() || values.len() > MAX_LABELS || values.windows(2).any(|w| w[0] >= w[1]) {
-            return Err(Error::invalid("label values must be non-empty and strictly ascending"));
+        if values.is_empty() || values.len() > MAX_LABELS || values.windows(2).any(|w| w[0] >= w[1])
+        {
+            return Err(Error::invalid(
+                "label values must be non-empty and strictly ascending",
+            ));
         }
         let n = values.len() as LabelId;
         if ids.par_iter().any(|&i| i >= n) {
             return Err(Error::invalid("a label id is outside the value table"));
         }
-        Ok(LabelVolume { dims, ids, values, geometry })
+        Ok(LabelVolume {
+            dims,
+            ids,
+            values,
+            geometry,
+        })
     }
 
     /// Grid shape.
