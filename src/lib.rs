@@ -19,6 +19,7 @@
 pub mod config;
 pub mod error;
 pub mod io;
+pub mod mesh;
 pub mod phantom;
 pub mod preprocess;
 pub mod star;

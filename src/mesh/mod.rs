@@ -1,0 +1,139 @@
+//! The output of septa: interface patches over one shared vertex pool.
+//!
+//! [`InterfaceMesh`] holds every patch of a volume: vertex positions (LPS mm),
+//! triangles tagged with the patch they belong to, the patches (one per pair of
+//! touching labels `{a, b}`, `a < b`, oriented so that normals point from `a`
+//! into `b`), and the junction curves where three or more labels meet. Patches
+//! share their boundary vertices exactly, so any label's closed surface is the
+//! union of its patches ([`InterfaceMesh::label_surface`]).
+//!
+//! [`validate`] checks the invariants every output keeps.
+
+pub mod validate;
+
+use glam::DVec3;
+
+use crate::volume::{Geometry, LabelId};
+
+/// One interface patch: the triangles between labels `labels[0] < labels[1]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Patch {
+    /// Dense label ids `[a, b]`, `a < b`; normals point from `a` into `b`.
+    pub labels: [LabelId; 2],
+}
+
+/// A polyline along which three or more labels meet.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct JunctionCurve {
+    /// Vertex ids along the curve.
+    pub vertices: Vec<u32>,
+    /// True when the curve is a closed loop (the last vertex connects to the first).
+    pub closed: bool,
+    /// The labels meeting along the curve (dense ids, ascending).
+    pub labels: Vec<LabelId>,
+}
+
+/// A label known to the mesh: its original value and display name.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LabelInfo {
+    pub value: i64,
+    pub name: String,
+}
+
+/// Interface patches of a label volume over one vertex pool.
+#[derive(Clone, Debug, Default)]
+pub struct InterfaceMesh {
+    /// Vertex positions, LPS millimetres.
+    pub positions: Vec<DVec3>,
+    /// Triangles (vertex ids), counter-clockwise about the normal.
+    pub triangles: Vec<[u32; 3]>,
+    /// Patch id of each triangle.
+    pub triangle_patch: Vec<u32>,
+    /// Patches, sorted by label pair.
+    pub patches: Vec<Patch>,
+    /// Junction curves.
+    pub junctions: Vec<JunctionCurve>,
+    /// Dense label id → value and name.
+    pub labels: Vec<LabelInfo>,
+    /// Geometry of the volume the mesh came from (identity if unknown).
+    pub geometry: Geometry,
+}
+
+impl InterfaceMesh {
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Triangle ids of each patch.
+    pub fn patch_triangles(&self) -> Vec<Vec<u32>> {
+        let mut out = vec![Vec::new(); self.patches.len()];
+        for (t, &p) in self.triangle_patch.iter().enumerate() {
+            out[p as usize].push(t as u32);
+        }
+        out
+    }
+
+    /// The patch id of label pair {a, b}, if the labels touch.
+    pub fn patch_of(&self, a: LabelId, b: LabelId) -> Option<u32> {
+        let key = [a.min(b), a.max(b)];
+        self.patches.binary_search_by(|p| p.labels.cmp(&key)).ok().map(|i| i as u32)
+    }
+
+    /// The closed surface of `label`: the triangles of every patch touching it,
+    /// oriented outward (away from `label`).
+    pub fn label_surface(&self, label: LabelId) -> Vec<[u32; 3]> {
+        let mut out = Vec::new();
+        for (t, &p) in self.triangle_patch.iter().enumerate() {
+            let [a, b] = self.patches[p as usize].labels;
+            let tri = self.triangles[t];
+            if a == label {
+                out.push(tri);
+            } else if b == label {
+                out.push([tri[0], tri[2], tri[1]]);
+            }
+        }
+        out
+    }
+
+    /// Labels that have at least one patch.
+    pub fn labels_with_patches(&self) -> Vec<LabelId> {
+        let mut v: Vec<LabelId> = self.patches.iter().flat_map(|p| p.labels).collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
+
+    /// Display name of a dense label id.
+    pub fn label_name(&self, id: LabelId) -> String {
+        self.labels.get(id as usize).map(|l| l.name.clone()).unwrap_or_else(|| format!("label{id}"))
+    }
+
+    /// Original value of a dense label id.
+    pub fn label_value(&self, id: LabelId) -> i64 {
+        self.labels.get(id as usize).map(|l| l.value).unwrap_or(id as i64)
+    }
+
+    /// Area of a triangle in mm².
+    pub fn triangle_area(&self, t: usize) -> f64 {
+        let [a, b, c] = self.triangles[t].map(|i| self.positions[i as usize]);
+        0.5 * (b - a).cross(c - a).length()
+    }
+
+    /// Signed volume enclosed by a set of oriented triangles (mm³; positive when
+    /// they enclose a region and face away from it).
+    pub fn signed_volume(&self, triangles: &[[u32; 3]]) -> f64 {
+        triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.positions[i as usize]);
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum()
+    }
+}
