@@ -491,7 +491,7 @@ fn complete_basis(mut columns: Vec<DVec3>) -> Vec<DVec3> {
     while columns.len() < 3 {
         let next = match columns[..] {
             [a, b] => a.cross(b).normalize_or_zero(),
-            [a] => a.any_orthonormal_vector(),
+            [a] => a.normalize_or(DVec3::X).any_orthonormal_vector(),
             _ => DVec3::X,
         };
         columns.push(next);
