@@ -110,7 +110,13 @@ fn parse_header(path: &Path, file: &[u8]) -> Result<Header> {
             .chars()
             .filter(|c| !c.is_whitespace())
             .collect();
-        fields.insert(key, value.trim().to_string());
+        let value = value.trim().to_string();
+        // `data file: LIST` is followed by file names up to the end of the header.
+        let list = key == "datafile" && value.starts_with("LIST");
+        fields.insert(key, value);
+        if list {
+            break;
+        }
     }
     Ok(Header { fields, data_start })
 }
