@@ -18,6 +18,7 @@
 
 pub mod config;
 pub mod error;
+pub mod extract;
 pub mod io;
 pub mod mesh;
 pub mod phantom;

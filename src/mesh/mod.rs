@@ -9,6 +9,7 @@
 //!
 //! [`validate`] checks the invariants every output keeps.
 
+pub mod intersect;
 pub mod validate;
 
 use glam::DVec3;
@@ -82,7 +83,10 @@ impl InterfaceMesh {
     /// The patch id of label pair {a, b}, if the labels touch.
     pub fn patch_of(&self, a: LabelId, b: LabelId) -> Option<u32> {
         let key = [a.min(b), a.max(b)];
-        self.patches.binary_search_by(|p| p.labels.cmp(&key)).ok().map(|i| i as u32)
+        self.patches
+            .binary_search_by(|p| p.labels.cmp(&key))
+            .ok()
+            .map(|i| i as u32)
     }
 
     /// The closed surface of `label`: the triangles of every patch touching it,
@@ -111,12 +115,18 @@ impl InterfaceMesh {
 
     /// Display name of a dense label id.
     pub fn label_name(&self, id: LabelId) -> String {
-        self.labels.get(id as usize).map(|l| l.name.clone()).unwrap_or_else(|| format!("label{id}"))
+        self.labels
+            .get(id as usize)
+            .map(|l| l.name.clone())
+            .unwrap_or_else(|| format!("label{id}"))
     }
 
     /// Original value of a dense label id.
     pub fn label_value(&self, id: LabelId) -> i64 {
-        self.labels.get(id as usize).map(|l| l.value).unwrap_or(id as i64)
+        self.labels
+            .get(id as usize)
+            .map(|l| l.value)
+            .unwrap_or(id as i64)
     }
 
     /// Area of a triangle in mm².

@@ -1,0 +1,275 @@
+//! Merging the parts produced in parallel into one [`InterfaceMesh`].
+//!
+//! Parts come in a fixed order (coarse slabs by z, then refined voxels by z, y,
+//! x), so the result does not depend on how many threads produced them. Vertex
+//! ids: coarse face centres first (by rank), then lattice points (sorted by
+//! key), then polygon centroids (in part order). Positions go from index space
+//! to LPS millimetres here, and triangles are reversed if the affine mirrors, so
+//! that normals still point from the lower label into the higher one.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::coarse_faces::CoarseFaces;
+use super::lattice::Lattice;
+use super::vesta::{TAG_CENTROID, TAG_KEY, TAG_MASK};
+use super::{Chord, Part};
+use crate::mesh::{InterfaceMesh, JunctionCurve, LabelInfo, Patch};
+use crate::volume::{Geometry, LabelId};
+
+/// Builds the mesh from the parts.
+pub(crate) fn assemble(
+    parts: Vec<Part>,
+    faces: Option<&CoarseFaces>,
+    lat: Lattice,
+    labels: Vec<LabelInfo>,
+    geometry: Geometry,
+) -> InterfaceMesh {
+    let n_face = faces.map_or(0, |f| f.count()) as usize;
+    // Lattice keys referenced anywhere.
+    let mut keys: Vec<u64> = parts
+        .par_iter()
+        .flat_map_iter(|p| {
+            p.tris
+                .iter()
+                .flatten()
+                .copied()
+                .chain(p.chords.iter().flat_map(|c| [c.a, c.b]))
+                .filter(|r| r & TAG_MASK == TAG_KEY)
+                .map(|r| r & !TAG_MASK)
+        })
+        .collect();
+    keys.par_sort_unstable();
+    keys.dedup();
+    let mut centroid_base = Vec::with_capacity(parts.len());
+    let mut acc = n_face + keys.len();
+    for p in &parts {
+        centroid_base.push(acc);
+        acc += p.centroids.len();
+    }
+    let total = acc;
+
+    let mut positions = Vec::with_capacity(total);
+    if let Some(f) = faces {
+        positions.extend(f.centres());
+    }
+    positions.extend(keys.iter().map(|&k| lat.key_position(k)));
+    for p in &parts {
+        positions.extend_from_slice(&p.centroids);
+    }
+
+    let resolve = |r: u64, part: usize| -> u32 {
+        match r & TAG_MASK {
+            0 => r as u32,
+            TAG_KEY => {
+                (n_face + keys.binary_search(&(r & !TAG_MASK)).expect("key collected")) as u32
+            }
+            TAG_CENTROID => (centroid_base[part] + (r & !TAG_MASK) as usize) as u32,
+            _ => unreachable!("bad vertex tag"),
+        }
+    };
+
+    // Patches.
+    let mut pairs: Vec<u32> = parts.iter().flat_map(|p| p.pairs.iter().copied()).collect();
+    pairs.par_sort_unstable();
+    pairs.dedup();
+    let patches: Vec<Patch> = pairs
+        .iter()
+        .map(|&c| Patch {
+            labels: [(c >> 16) as LabelId, (c & 0xffff) as LabelId],
+        })
+        .collect();
+
+    let mirrored = geometry.is_mirroring();
+    let per_part: Vec<(Vec<[u32; 3]>, Vec<u32>)> = parts
+        .par_iter()
+        .enumerate()
+        .map(|(pi, p)| {
+            let tris = p
+                .tris
+                .iter()
+                .map(|t| {
+                    let t = t.map(|r| resolve(r, pi));
+                    if mirrored { [t[0], t[2], t[1]] } else { t }
+                })
+                .collect();
+            let ids = p
+                .pairs
+                .iter()
+                .map(|c| pairs.binary_search(c).expect("pair collected") as u32)
+                .collect();
+            (tris, ids)
+        })
+        .collect();
+    let mut triangles = Vec::new();
+    let mut triangle_patch = Vec::new();
+    for (t, ids) in per_part {
+        triangles.extend(t);
+        triangle_patch.extend(ids);
+    }
+
+    let chords: Vec<(u32, u32, Vec<LabelId>)> = parts
+        .iter()
+        .enumerate()
+        .flat_map(|(pi, p)| p.chords.iter().map(move |c| (pi, c)))
+        .map(|(pi, c): (usize, &Chord)| {
+            (
+                resolve(c.a, pi),
+                resolve(c.b, pi),
+                c.labels[..c.count as usize].to_vec(),
+            )
+        })
+        .collect();
+
+    let positions: Vec<DVec3> = positions
+        .par_iter()
+        .map(|&p| geometry.index_to_physical(p))
+        .collect();
+    let mut mesh = InterfaceMesh {
+        positions,
+        triangles,
+        triangle_patch,
+        patches,
+        junctions: Vec::new(),
+        labels,
+        geometry,
+    };
+    mesh.junctions = chain_junctions(mesh.positions.len(), &chords);
+    compact_unused(&mut mesh);
+    mesh
+}
+
+/// Chains junction chords into polylines: curves end at corners (vertices where
+/// other than two chords meet, or where the set of labels changes) and the rest
+/// close into loops.
+pub(crate) fn chain_junctions(
+    n_vertices: usize,
+    chords: &[(u32, u32, Vec<LabelId>)],
+) -> Vec<JunctionCurve> {
+    if chords.is_empty() {
+        return Vec::new();
+    }
+    let mut chords: Vec<(u32, u32, Vec<LabelId>)> = chords
+        .iter()
+        .map(|(a, b, l)| (*a.min(b), *a.max(b), l.clone()))
+        .collect();
+    chords.sort();
+    chords.dedup();
+    // adjacency: vertex -> chord ids (CSR)
+    let mut degree = vec![0u32; n_vertices + 1];
+    for (a, b, _) in &chords {
+        degree[*a as usize] += 1;
+        degree[*b as usize] += 1;
+    }
+    let mut start = vec![0usize; n_vertices + 1];
+    for v in 0..n_vertices {
+        start[v + 1] = start[v] + degree[v] as usize;
+    }
+    let mut fill = start.clone();
+    let mut adj = vec![0u32; start[n_vertices]];
+    for (i, (a, b, _)) in chords.iter().enumerate() {
+        for v in [*a, *b] {
+            adj[fill[v as usize]] = i as u32;
+            fill[v as usize] += 1;
+        }
+    }
+    let incident = |v: u32| &adj[start[v as usize]..start[v as usize + 1]];
+    let is_corner = |v: u32| {
+        let inc = incident(v);
+        inc.len() != 2 || chords[inc[0] as usize].2 != chords[inc[1] as usize].2
+    };
+    let mut used = vec![false; chords.len()];
+    let mut curves = Vec::new();
+    let walk = |from: u32, first: u32, used: &mut Vec<bool>| -> (Vec<u32>, bool) {
+        let mut verts = vec![from];
+        let mut v = from;
+        let mut c = first;
+        loop {
+            used[c as usize] = true;
+            let (a, b, _) = &chords[c as usize];
+            let next = if *a == v { *b } else { *a };
+            verts.push(next);
+            if next == from {
+                verts.pop();
+                return (verts, true);
+            }
+            if is_corner(next) {
+                return (verts, false);
+            }
+            let inc = incident(next);
+            let n = if inc[0] == c { inc[1] } else { inc[0] };
+            if used[n as usize] {
+                return (verts, false);
+            }
+            v = next;
+            c = n;
+        }
+    };
+    let mut corners: Vec<u32> = chords
+        .iter()
+        .flat_map(|(a, b, _)| [*a, *b])
+        .filter(|&v| is_corner(v))
+        .collect();
+    corners.sort_unstable();
+    corners.dedup();
+    for &v in &corners {
+        for &c in incident(v) {
+            if !used[c as usize] {
+                let labels = chords[c as usize].2.clone();
+                let (verts, closed) = walk(v, c, &mut used);
+                curves.push(JunctionCurve {
+                    vertices: verts,
+                    closed,
+                    labels,
+                });
+            }
+        }
+    }
+    for c in 0..chords.len() {
+        if !used[c] {
+            let labels = chords[c].2.clone();
+            let (verts, closed) = walk(chords[c].0, c as u32, &mut used);
+            curves.push(JunctionCurve {
+                vertices: verts,
+                closed,
+                labels,
+            });
+        }
+    }
+    curves
+}
+
+/// Removes vertices no triangle uses (none are expected; kept for robustness).
+fn compact_unused(mesh: &mut InterfaceMesh) {
+    let n = mesh.positions.len();
+    let mut used = vec![false; n];
+    for t in &mesh.triangles {
+        for &v in t {
+            used[v as usize] = true;
+        }
+    }
+    if used.iter().all(|&u| u) {
+        return;
+    }
+    let mut remap = vec![u32::MAX; n];
+    let mut next = 0u32;
+    let mut positions = Vec::with_capacity(n);
+    for v in 0..n {
+        if used[v] {
+            remap[v] = next;
+            next += 1;
+            positions.push(mesh.positions[v]);
+        }
+    }
+    mesh.positions = positions;
+    for t in &mut mesh.triangles {
+        *t = t.map(|v| remap[v as usize]);
+    }
+    for c in &mut mesh.junctions {
+        c.vertices.retain(|&v| used[v as usize]);
+        for v in &mut c.vertices {
+            *v = remap[*v as usize];
+        }
+    }
+    mesh.junctions.retain(|c| c.vertices.len() >= 2);
+}

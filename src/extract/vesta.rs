@@ -1,0 +1,632 @@
+//! The VESTA construction on the mixed coarse/fine grid, one grid vertex at a time.
+//!
+//! The surface is the dual of the labels' boundary faces: one support point per
+//! boundary face (its centre), and for each grid vertex `g` and each label `l`
+//! at `g`, the cycle of `l`'s boundary faces around `g` (an N-cycle). The cycle is
+//! split into runs of faces with the same neighbour label `m`; a cycle with one
+//! run is one polygon of patch {l, m}; a run entered through edge `e_in` and left
+//! through `e_out` becomes the polygon `mid(e_in), c(f_p) … c(f_q), mid(e_out), g`,
+//! whose chords `mid(e) – g` are pieces of junction curves. Each polygon is
+//! emitted once, by the lower label of its pair, oriented from it to the higher.
+//!
+//! Two paths produce the same kind of output:
+//! - the **coarse path** visits every grid vertex none of whose 8 cells is refined,
+//!   in parallel over z slabs, with tables only (no allocation per vertex);
+//! - the **fine path** visits every fine grid vertex in the closure of a refined
+//!   voxel (each once, by the lowest refined voxel containing it); quarter-faces
+//!   lying in a coarse face between unrefined voxels belong to that coarse face,
+//!   and consecutive quarter-faces of one coarse face merge into one support point.
+
+use glam::DVec3;
+
+use super::coarse_faces::CoarseFaces;
+use super::lattice::{Key, Lattice};
+use super::polygon::{centroid_fan, is_degenerate, min_area_triangulation, vertex_fan};
+use super::{Decompose, Part};
+use crate::preprocess::RefinedVolume;
+use crate::star::{
+    CycleStep, MaskStar, StarTable, edge_dir, edge_star, face_axis, face_center_offset,
+    face_octants,
+};
+use crate::volume::LabelId;
+
+/// Tags of vertex references in [`Part`] triangles.
+pub(crate) const TAG_KEY: u64 = 1 << 62;
+pub(crate) const TAG_CENTROID: u64 = 2 << 62;
+pub(crate) const TAG_MASK: u64 = 3 << 62;
+
+#[inline]
+fn key_ref(k: Key) -> u64 {
+    TAG_KEY | k
+}
+
+/// Pair id of a label pair (a < b).
+#[inline]
+pub(crate) fn pair_code(a: LabelId, b: LabelId) -> u32 {
+    ((a as u32) << 16) | b as u32
+}
+
+/// L triangulations of the single cycle of every manifold mask on the unit grid.
+pub(crate) struct LTable {
+    tris: Vec<Vec<[u8; 3]>>,
+}
+
+impl LTable {
+    pub(crate) fn get() -> &'static LTable {
+        static T: std::sync::OnceLock<LTable> = std::sync::OnceLock::new();
+        T.get_or_init(|| {
+            let table = StarTable::disconnect();
+            let tris = (0..=255u8)
+                .map(|m| {
+                    let star = table.get(m);
+                    if star.cycles != 1 {
+                        return Vec::new();
+                    }
+                    let pts: Vec<DVec3> = star
+                        .cycle(0)
+                        .iter()
+                        .map(|st| {
+                            let o = face_center_offset(st.face as usize);
+                            DVec3::new(o[0] as f64, o[1] as f64, o[2] as f64) * 0.5
+                        })
+                        .collect();
+                    min_area_triangulation(&pts)
+                        .map(|t| t.into_iter().map(|x| x.map(|v| v as u8)).collect())
+                        .unwrap_or_default()
+                })
+                .collect();
+            LTable { tris }
+        })
+    }
+}
+
+/// A point of a polygon: its reference and index-space position.
+type Pt = (u64, DVec3);
+
+/// One step of a cycle after merging: support point, neighbour label, edges.
+#[derive(Clone, Copy)]
+struct Step {
+    point: Pt,
+    neighbour: LabelId,
+    in_edge: u8,
+    out_edge: u8,
+}
+
+/// What every vertex visit needs.
+pub(crate) struct Ctx<'a> {
+    pub rv: &'a RefinedVolume,
+    pub faces: &'a CoarseFaces,
+    pub lat: Lattice,
+    pub decompose: Decompose,
+}
+
+/// The grid vertex being visited.
+struct Vertex {
+    lattice: [i32; 3],
+    /// Half-length of each half-edge in lattice units (s for an unsplit coarse edge, 1 for a fine edge).
+    half: [i32; 6],
+}
+
+impl Vertex {
+    fn point(&self, lat: &Lattice) -> Pt {
+        (key_ref(lat.key(self.lattice)), lat.position(self.lattice))
+    }
+
+    fn mid(&self, lat: &Lattice, e: usize) -> Pt {
+        let d = edge_dir(e);
+        let l = [0, 1, 2].map(|a| self.lattice[a] + d[a] * self.half[e]);
+        (key_ref(lat.key(l)), lat.position(l))
+    }
+}
+
+/// Emits the triangles of one polygon of patch `pair`. `apex` is the index of
+/// the junction vertex in `pts`, if the polygon has one; `table` an L
+/// triangulation precomputed for this exact cycle.
+fn emit_polygon(
+    part: &mut Part,
+    pts: &[Pt],
+    pair: u32,
+    apex: Option<usize>,
+    table: Option<&[[u8; 3]]>,
+    decompose: Decompose,
+) {
+    let n = pts.len();
+    let push = |part: &mut Part, t: [u64; 3]| {
+        part.tris.push(t);
+        part.pairs.push(pair);
+    };
+    if n == 3 {
+        push(part, [pts[0].0, pts[1].0, pts[2].0]);
+        return;
+    }
+    let mut pos = [DVec3::ZERO; 24];
+    for (i, p) in pts.iter().enumerate() {
+        pos[i] = p.1;
+    }
+    let pos = &pos[..n];
+    if decompose == Decompose::H {
+        if let Some((c, fan)) = centroid_fan(pos) {
+            let cref = TAG_CENTROID | part.centroids.len() as u64;
+            part.centroids.push(c);
+            for t in fan {
+                push(part, [cref, pts[t[1]].0, pts[t[2]].0]);
+            }
+            return;
+        }
+    }
+    if let Some(a) = apex {
+        let fan = vertex_fan(n, a);
+        if fan
+            .iter()
+            .all(|t| !is_degenerate(pos[t[0]], pos[t[1]], pos[t[2]]))
+        {
+            for t in fan {
+                push(part, t.map(|i| pts[i].0));
+            }
+            return;
+        }
+    }
+    if let Some(tris) = table.filter(|t| !t.is_empty()) {
+        for t in tris {
+            push(part, t.map(|i| pts[i as usize].0));
+        }
+        return;
+    }
+    if let Some(tris) = min_area_triangulation(pos) {
+        for t in tris {
+            push(part, t.map(|i| pts[i].0));
+        }
+        return;
+    }
+    // Last resort (not expected on valid input): the validator will flag it.
+    let (c, fan) = match centroid_fan(pos) {
+        Some(f) => f,
+        None => (
+            pos.iter().copied().sum::<DVec3>() / n as f64,
+            (0..n).map(|i| [n, i, (i + 1) % n]).collect(),
+        ),
+    };
+    let cref = TAG_CENTROID | part.centroids.len() as u64;
+    part.centroids.push(c);
+    for t in fan {
+        push(part, [cref, pts[t[1]].0, pts[t[2]].0]);
+    }
+}
+
+/// Splits one cycle of label `l` into runs and emits the polygons owned by `l`.
+fn emit_cycle(
+    ctx: &Ctx,
+    part: &mut Part,
+    l: LabelId,
+    steps: &[Step],
+    v: &Vertex,
+    table: Option<&[[u8; 3]]>,
+) {
+    let n = steps.len();
+    let first = steps[0].neighbour;
+    if steps.iter().all(|s| s.neighbour == first) {
+        // A hanging vertex on a straight coarse edge sees only the two coarse
+        // faces of the fold: a digon, no area. The dual edge between the two
+        // faces comes from the edge's end vertices, as if it were not split.
+        if l < first && n >= 3 {
+            let mut pts = [(0u64, DVec3::ZERO); 16];
+            for (i, s) in steps.iter().enumerate() {
+                pts[i] = s.point;
+            }
+            emit_polygon(
+                part,
+                &pts[..n],
+                pair_code(l, first),
+                None,
+                table,
+                ctx.decompose,
+            );
+        }
+        return;
+    }
+    // Start at a run boundary.
+    let start = (0..n)
+        .find(|&t| steps[t].neighbour != steps[(t + n - 1) % n].neighbour)
+        .expect("two runs");
+    let mut t = 0;
+    while t < n {
+        let p = (start + t) % n;
+        let m = steps[p].neighbour;
+        let mut q = t;
+        while q + 1 < n && steps[(start + q + 1) % n].neighbour == m {
+            q += 1;
+        }
+        if l < m {
+            let mut pts = [(0u64, DVec3::ZERO); 16];
+            let mut k = 0;
+            pts[k] = v.mid(&ctx.lat, steps[p].in_edge as usize);
+            k += 1;
+            for r in t..=q {
+                pts[k] = steps[(start + r) % n].point;
+                k += 1;
+            }
+            pts[k] = v.mid(&ctx.lat, steps[(start + q) % n].out_edge as usize);
+            k += 1;
+            pts[k] = v.point(&ctx.lat);
+            k += 1;
+            emit_polygon(
+                part,
+                &pts[..k],
+                pair_code(l, m),
+                Some(k - 1),
+                None,
+                ctx.decompose,
+            );
+        }
+        t = q + 1;
+    }
+}
+
+/// Junction chords at a vertex: half-edges with three or more labels around them.
+fn emit_chords(ctx: &Ctx, part: &mut Part, oct: &[LabelId; 8], v: &Vertex) {
+    for e in 0..6 {
+        let (octs, _) = edge_star(e);
+        let mut labels = octs.map(|o| oct[o]);
+        labels.sort_unstable();
+        let mut distinct = 1;
+        for i in 1..4 {
+            if labels[i] != labels[i - 1] {
+                labels[distinct] = labels[i];
+                distinct += 1;
+            }
+        }
+        if distinct >= 3 {
+            part.chords.push(super::Chord {
+                a: v.point(&ctx.lat).0,
+                b: v.mid(&ctx.lat, e).0,
+                labels,
+                count: distinct as u8,
+            });
+        }
+    }
+}
+
+/// Octant offsets in the padded buffer.
+fn octant_offsets(strides: [usize; 3]) -> [usize; 8] {
+    let [sx, sy, sz] = strides;
+    [0, sx, sy, sx + sy, sz, sz + sx, sz + sy, sz + sy + sx]
+}
+
+/// The coarse path over grid vertex planes `k0..k1`.
+pub(crate) fn coarse_slab(ctx: &Ctx, k0: i32, k1: i32) -> Part {
+    let rv = ctx.rv;
+    let grid = rv.grid();
+    let dims = grid.dims();
+    let data = grid.data();
+    let offsets = octant_offsets(grid.strides());
+    let table = StarTable::disconnect();
+    let ltable = LTable::get();
+    let s = ctx.lat.s;
+    let mut part = Part::default();
+    for k in k0..k1 {
+        for j in 0..=dims.ny as i32 {
+            let row = grid.padded_index(0, j as usize, k as usize);
+            for i in 0..=dims.nx as i32 {
+                let base = row + i as usize;
+                let c0 = data[base];
+                let mut oct = [c0; 8];
+                let mut uniform = true;
+                for o in 1..8 {
+                    oct[o] = data[base + offsets[o]];
+                    uniform &= oct[o] == c0;
+                }
+                if uniform || offsets.iter().any(|&off| rv.is_refined_padded(base + off)) {
+                    continue;
+                }
+                let v = Vertex {
+                    lattice: ctx.lat.of_fine_vertex([i * s, j * s, k * s]),
+                    half: [s; 6],
+                };
+                let mut seen = 0u8;
+                for o in 0..8 {
+                    if seen >> o & 1 == 1 {
+                        continue;
+                    }
+                    let l = oct[o];
+                    let mask = mask_of(&oct, l);
+                    seen |= mask;
+                    let star = table.get(mask);
+                    let single = star.cycles == 1;
+                    for cy in 0..star.cycles as usize {
+                        let mut steps = [Step {
+                            point: (0, DVec3::ZERO),
+                            neighbour: 0,
+                            in_edge: 0,
+                            out_edge: 0,
+                        }; 12];
+                        let cycle = star.cycle(cy);
+                        for (t, st) in cycle.iter().enumerate() {
+                            steps[t] = coarse_step(ctx, &oct, mask, base, &offsets, st);
+                        }
+                        let lt = if single {
+                            Some(&ltable.tris[mask as usize][..])
+                        } else {
+                            None
+                        };
+                        emit_cycle(ctx, &mut part, l, &steps[..cycle.len()], &v, lt);
+                    }
+                }
+                emit_chords(ctx, &mut part, &oct, &v);
+            }
+        }
+    }
+    part
+}
+
+#[inline]
+fn mask_of(oct: &[LabelId; 8], l: LabelId) -> u8 {
+    let mut mask = 0u8;
+    for (p, &x) in oct.iter().enumerate() {
+        if x == l {
+            mask |= 1 << p;
+        }
+    }
+    mask
+}
+
+#[inline]
+fn coarse_step(
+    ctx: &Ctx,
+    oct: &[LabelId; 8],
+    mask: u8,
+    base: usize,
+    offsets: &[usize; 8],
+    st: &CycleStep,
+) -> Step {
+    let f = st.face as usize;
+    let (lo, hi) = face_octants(f);
+    let other = if mask >> lo & 1 == 1 { hi } else { lo };
+    let a = face_axis(f);
+    let cell = base + offsets[hi];
+    let id = ctx.faces.id(a, cell);
+    Step {
+        point: (id as u64, ctx.faces.centre(a, cell)),
+        neighbour: oct[other],
+        in_edge: st.in_edge,
+        out_edge: st.out_edge,
+    }
+}
+
+/// Neighbourhood of a refined voxel: the 27 coarse cells around it.
+struct Near<'a> {
+    cell: [i32; 3],
+    sub: [Option<&'a [LabelId]>; 27],
+    label: [LabelId; 27],
+}
+
+impl<'a> Near<'a> {
+    fn new(rv: &'a RefinedVolume, c: [i32; 3]) -> Self {
+        let mut near = Near {
+            cell: c,
+            sub: [None; 27],
+            label: [0; 27],
+        };
+        for i in 0..27 {
+            let n = [
+                c[0] + (i % 3) as i32 - 1,
+                c[1] + (i / 3 % 3) as i32 - 1,
+                c[2] + (i / 9) as i32 - 1,
+            ];
+            near.sub[i] = if rv.is_refined(n) {
+                rv.subvoxels(n)
+            } else {
+                None
+            };
+            near.label[i] = rv.coarse_label(n);
+        }
+        near
+    }
+
+    /// Slot of coarse cell `n` (must be within one cell of the centre).
+    #[inline]
+    fn slot(&self, n: [i32; 3]) -> usize {
+        let d = [0, 1, 2].map(|a| (n[a] - self.cell[a] + 1) as usize);
+        d[0] + 3 * (d[1] + 3 * d[2])
+    }
+
+    #[inline]
+    fn refined(&self, n: [i32; 3]) -> bool {
+        self.sub[self.slot(n)].is_some()
+    }
+
+    /// Label of fine cell `f` (its coarse cell within one of the centre).
+    #[inline]
+    fn fine_label(&self, f: [i32; 3], s: i32) -> LabelId {
+        let n = f.map(|v| v.div_euclid(s));
+        let i = self.slot(n);
+        match self.sub[i] {
+            Some(sub) => {
+                let l = [0, 1, 2].map(|a| f[a] - n[a] * s);
+                sub[(l[0] + s * (l[1] + s * l[2])) as usize]
+            }
+            None => self.label[i],
+        }
+    }
+}
+
+/// Whether refined voxel `c` is the lowest refined voxel containing its local
+/// lattice point `u` (so that every fine vertex is visited once).
+fn owns(near: &Near, u: [i32; 3], s: i32) -> bool {
+    let range = |x: i32| {
+        if x == 0 {
+            (-1, 0)
+        } else if x == s {
+            (0, 1)
+        } else {
+            (0, 0)
+        }
+    };
+    let (rx, ry, rz) = (range(u[0]), range(u[1]), range(u[2]));
+    for dz in rz.0..=rz.1 {
+        for dy in ry.0..=ry.1 {
+            for dx in rx.0..=rx.1 {
+                let lower = dz < 0 || (dz == 0 && (dy < 0 || (dy == 0 && dx < 0)));
+                if lower && near.refined([near.cell[0] + dx, near.cell[1] + dy, near.cell[2] + dz])
+                {
+                    return false;
+                }
+            }
+        }
+    }
+    true
+}
+
+/// The fine path over a list of refined voxels.
+pub(crate) fn refined_cells(ctx: &Ctx, cells: &[[i32; 3]]) -> Part {
+    let mut part = Part::default();
+    for &c in cells {
+        refined_cell(ctx, &mut part, c);
+    }
+    part
+}
+
+fn refined_cell(ctx: &Ctx, part: &mut Part, c: [i32; 3]) {
+    let rv = ctx.rv;
+    let s = ctx.lat.s;
+    let near = Near::new(rv, c);
+    let table = StarTable::disconnect();
+    for w in 0..=s {
+        for v in 0..=s {
+            for u in 0..=s {
+                let local = [u, v, w];
+                let p = [c[0] * s + u, c[1] * s + v, c[2] * s + w];
+                let mut oct = [0 as LabelId; 8];
+                for (o, slot) in oct.iter_mut().enumerate() {
+                    *slot = near.fine_label(
+                        [
+                            p[0] - 1 + (o & 1) as i32,
+                            p[1] - 1 + ((o >> 1) & 1) as i32,
+                            p[2] - 1 + ((o >> 2) & 1) as i32,
+                        ],
+                        s,
+                    );
+                }
+                if oct.iter().all(|&l| l == oct[0]) || !owns(&near, local, s) {
+                    continue;
+                }
+                let vert = Vertex {
+                    lattice: ctx.lat.of_fine_vertex(p),
+                    half: half_edges(&near, p, s),
+                };
+                let mut seen = 0u8;
+                for o in 0..8 {
+                    if seen >> o & 1 == 1 {
+                        continue;
+                    }
+                    let l = oct[o];
+                    let mask = mask_of(&oct, l);
+                    seen |= mask;
+                    let star: &MaskStar = table.get(mask);
+                    for cy in 0..star.cycles as usize {
+                        let mut steps = [Step {
+                            point: (0, DVec3::ZERO),
+                            neighbour: 0,
+                            in_edge: 0,
+                            out_edge: 0,
+                        }; 12];
+                        let mut n = 0;
+                        for st in star.cycle(cy) {
+                            let step = fine_step(ctx, &near, &oct, mask, p, st);
+                            // consecutive quarter-faces of one coarse face: one support point
+                            if n > 0 && steps[n - 1].point.0 == step.point.0 {
+                                steps[n - 1].out_edge = step.out_edge;
+                            } else {
+                                steps[n] = step;
+                                n += 1;
+                            }
+                        }
+                        if n > 1 && steps[n - 1].point.0 == steps[0].point.0 {
+                            steps[0].in_edge = steps[n - 1].in_edge;
+                            n -= 1;
+                        }
+                        emit_cycle(ctx, part, l, &steps[..n], &vert, None);
+                    }
+                }
+                emit_chords(ctx, part, &oct, &vert);
+            }
+        }
+    }
+}
+
+/// Half-lengths (lattice units) of the six half-edges at fine vertex `p`: an
+/// unsplit coarse edge (coarse vertex, no refined cell around the edge) has s,
+/// every other edge is a fine edge of half-length 1.
+fn half_edges(near: &Near, p: [i32; 3], s: i32) -> [i32; 6] {
+    let mut half = [1; 6];
+    if p.iter().any(|&x| x.rem_euclid(s) != 0) {
+        return half;
+    }
+    let q = p.map(|x| x / s);
+    for (e, h) in half.iter_mut().enumerate() {
+        let axis = e / 2;
+        let along = if e & 1 == 1 { q[axis] } else { q[axis] - 1 };
+        let mut any_refined = false;
+        for db in -1..=0 {
+            for dc in -1..=0 {
+                let mut cell = q;
+                cell[axis] = along;
+                let (b, cax) = crate::star::other_axes(axis);
+                cell[b] += db;
+                cell[cax] += dc;
+                any_refined |= near.refined(cell);
+            }
+        }
+        if !any_refined {
+            *h = s;
+        }
+    }
+    half
+}
+
+/// Support point and neighbour label of quarter-face `st.face` at fine vertex `p`.
+fn fine_step(
+    ctx: &Ctx,
+    near: &Near,
+    oct: &[LabelId; 8],
+    mask: u8,
+    p: [i32; 3],
+    st: &CycleStep,
+) -> Step {
+    let s = ctx.lat.s;
+    let f = st.face as usize;
+    let (lo, hi) = face_octants(f);
+    let other = if mask >> lo & 1 == 1 { hi } else { lo };
+    let a = face_axis(f);
+    let cell_of = |o: usize| {
+        [
+            p[0] - 1 + (o & 1) as i32,
+            p[1] - 1 + ((o >> 1) & 1) as i32,
+            p[2] - 1 + ((o >> 2) & 1) as i32,
+        ]
+    };
+    let (fa, fb) = (cell_of(lo), cell_of(hi));
+    let (ca, cb) = (fa.map(|x| x.div_euclid(s)), fb.map(|x| x.div_euclid(s)));
+    let point = if ca != cb && !near.refined(ca) && !near.refined(cb) {
+        let grid = ctx.rv.grid();
+        let i = grid.padded_index(
+            (cb[0] + 1) as usize,
+            (cb[1] + 1) as usize,
+            (cb[2] + 1) as usize,
+        );
+        (ctx.faces.id(a, i) as u64, ctx.faces.centre(a, i))
+    } else {
+        let mut l = ctx.lat.of_fine_vertex(fb);
+        for (ax, v) in l.iter_mut().enumerate() {
+            if ax != a {
+                *v += 1;
+            }
+        }
+        (key_ref(ctx.lat.key(l)), ctx.lat.position(l))
+    };
+    Step {
+        point,
+        neighbour: oct[other],
+        in_edge: st.in_edge,
+        out_edge: st.out_edge,
+    }
+}

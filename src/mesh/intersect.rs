@@ -1,0 +1,354 @@
+//! Self-intersection test: a bounding-volume hierarchy over triangles and an
+//! exact-enough triangle–triangle test that understands shared vertices and
+//! edges (neighbours touching along what they share is not an intersection).
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::InterfaceMesh;
+use super::validate::Check;
+
+/// A flat BVH over triangle bounding boxes (median split on the longest axis).
+pub struct Bvh {
+    nodes: Vec<Node>,
+    /// Triangle ids in leaf order.
+    pub items: Vec<u32>,
+}
+
+#[derive(Clone, Copy)]
+struct Node {
+    lo: DVec3,
+    hi: DVec3,
+    /// Leaf: first item and count; inner: left child index and 0 (right = left + 1).
+    start: u32,
+    count: u32,
+}
+
+const LEAF: usize = 4;
+
+impl Bvh {
+    /// Builds the hierarchy over boxes `boxes[i] = (lo, hi)`.
+    pub fn new(boxes: &[(DVec3, DVec3)]) -> Self {
+        let mut items: Vec<u32> = (0..boxes.len() as u32).collect();
+        let mut nodes = Vec::with_capacity(2 * boxes.len() / LEAF + 2);
+        nodes.push(Node {
+            lo: DVec3::ZERO,
+            hi: DVec3::ZERO,
+            start: 0,
+            count: 0,
+        });
+        let mut stack = vec![(0usize, 0usize, boxes.len())];
+        while let Some((ni, start, end)) = stack.pop() {
+            let (lo, hi) = items[start..end].iter().fold(
+                (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+                |(lo, hi), &i| (lo.min(boxes[i as usize].0), hi.max(boxes[i as usize].1)),
+            );
+            if end - start <= LEAF {
+                nodes[ni] = Node {
+                    lo,
+                    hi,
+                    start: start as u32,
+                    count: (end - start) as u32,
+                };
+                continue;
+            }
+            let ext = hi - lo;
+            let axis = if ext.x >= ext.y && ext.x >= ext.z {
+                0
+            } else if ext.y >= ext.z {
+                1
+            } else {
+                2
+            };
+            let mid = (start + end) / 2;
+            items[start..end].select_nth_unstable_by(mid - start, |&a, &b| {
+                let ca = boxes[a as usize].0[axis] + boxes[a as usize].1[axis];
+                let cb = boxes[b as usize].0[axis] + boxes[b as usize].1[axis];
+                ca.total_cmp(&cb)
+            });
+            let left = nodes.len();
+            nodes.push(Node {
+                lo: DVec3::ZERO,
+                hi: DVec3::ZERO,
+                start: 0,
+                count: 0,
+            });
+            nodes.push(Node {
+                lo: DVec3::ZERO,
+                hi: DVec3::ZERO,
+                start: 0,
+                count: 0,
+            });
+            nodes[ni] = Node {
+                lo,
+                hi,
+                start: left as u32,
+                count: 0,
+            };
+            stack.push((left, start, mid));
+            stack.push((left + 1, mid, end));
+        }
+        Bvh { nodes, items }
+    }
+
+    /// Calls `f` with every item whose box overlaps `[lo, hi]`.
+    pub fn query(&self, lo: DVec3, hi: DVec3, mut f: impl FnMut(u32)) {
+        if self.items.is_empty() {
+            return;
+        }
+        let mut stack = vec![0usize];
+        while let Some(ni) = stack.pop() {
+            let n = self.nodes[ni];
+            if n.lo.cmpgt(hi).any() || n.hi.cmplt(lo).any() {
+                continue;
+            }
+            if n.count > 0 {
+                for &i in &self.items[n.start as usize..(n.start + n.count) as usize] {
+                    f(i);
+                }
+            } else {
+                stack.push(n.start as usize);
+                stack.push(n.start as usize + 1);
+            }
+        }
+    }
+}
+
+/// Pairs of triangles that intersect other than along what they share.
+pub fn self_intersections(positions: &[DVec3], triangles: &[[u32; 3]]) -> Vec<(u32, u32)> {
+    let boxes: Vec<(DVec3, DVec3)> = triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| positions[v as usize]);
+            let pad = 1e-9 * (1.0 + a.abs().max_element());
+            (
+                a.min(b).min(c) - DVec3::splat(pad),
+                a.max(b).max(c) + DVec3::splat(pad),
+            )
+        })
+        .collect();
+    let bvh = Bvh::new(&boxes);
+    (0..triangles.len() as u32)
+        .into_par_iter()
+        .flat_map_iter(|i| {
+            let mut hits = Vec::new();
+            bvh.query(boxes[i as usize].0, boxes[i as usize].1, |j| {
+                if j > i
+                    && triangles_intersect(positions, triangles[i as usize], triangles[j as usize])
+                {
+                    hits.push((i, j));
+                }
+            });
+            hits
+        })
+        .collect()
+}
+
+/// The validator's check.
+pub fn check_self_intersections(mesh: &InterfaceMesh) -> Check {
+    let mut c = Check {
+        name: "no self-intersections",
+        failures: 0,
+        examples: Vec::new(),
+    };
+    for (i, j) in self_intersections(&mesh.positions, &mesh.triangles) {
+        c.failures += 1;
+        if c.examples.len() < 8 {
+            c.examples.push(format!(
+                "triangles {i} {:?} and {j} {:?}",
+                mesh.triangles[i as usize], mesh.triangles[j as usize]
+            ));
+        }
+    }
+    c
+}
+
+/// Whether triangles `s` and `t` intersect beyond their shared vertices/edge.
+pub fn triangles_intersect(p: &[DVec3], s: [u32; 3], t: [u32; 3]) -> bool {
+    let shared: Vec<(usize, usize)> = (0..3)
+        .flat_map(|i| (0..3).filter(move |&j| s[i] == t[j]).map(move |j| (i, j)))
+        .collect();
+    let sp = s.map(|v| p[v as usize]);
+    let tp = t.map(|v| p[v as usize]);
+    match shared.len() {
+        0 => disjoint_intersect(&sp, &tp),
+        1 => {
+            let (i, j) = shared[0];
+            // the opposite edge of each against the other triangle
+            let (s1, s2) = (sp[(i + 1) % 3], sp[(i + 2) % 3]);
+            let (t1, t2) = (tp[(j + 1) % 3], tp[(j + 2) % 3]);
+            segment_hits_triangle(s1, s2, &tp)
+                || segment_hits_triangle(t1, t2, &sp)
+                || coplanar_wedges_overlap(sp[i], s1, s2, t1, t2)
+        }
+        2 => {
+            // folded onto each other: coplanar with both free vertices on one side
+            let free_s = (0..3)
+                .find(|&i| !shared.iter().any(|x| x.0 == i))
+                .expect("one free vertex");
+            let free_t = (0..3)
+                .find(|&j| !shared.iter().any(|x| x.1 == j))
+                .expect("one free vertex");
+            let (a, b) = (sp[shared[0].0], sp[shared[1].0]);
+            let n = (b - a).cross(sp[free_s] - a);
+            let scale = (b - a).length_squared().max(1e-300);
+            let off = n.dot(tp[free_t] - a) / (n.length() * scale.sqrt()).max(1e-300);
+            if off.abs() > 1e-9 {
+                return false;
+            }
+            // same side of the shared edge within the plane
+            let e = b - a;
+            let side = |q: DVec3| e.cross(q - a).dot(n);
+            side(sp[free_s]) * side(tp[free_t]) > 0.0
+        }
+        _ => true,
+    }
+}
+
+fn disjoint_intersect(s: &[DVec3; 3], t: &[DVec3; 3]) -> bool {
+    for k in 0..3 {
+        if segment_hits_triangle(s[k], s[(k + 1) % 3], t)
+            || segment_hits_triangle(t[k], t[(k + 1) % 3], s)
+        {
+            return true;
+        }
+    }
+    coplanar_overlap(s, t)
+}
+
+/// Segment [a, b] against triangle t (closed), non-coplanar case.
+fn segment_hits_triangle(a: DVec3, b: DVec3, t: &[DVec3; 3]) -> bool {
+    let (e1, e2) = (t[1] - t[0], t[2] - t[0]);
+    let d = b - a;
+    let h = d.cross(e2);
+    let det = e1.dot(h);
+    let scale = e1.length() * e2.length() * d.length();
+    if det.abs() <= 1e-12 * scale {
+        return false; // parallel: handled by the coplanar tests
+    }
+    let inv = 1.0 / det;
+    let sv = a - t[0];
+    let u = sv.dot(h) * inv;
+    let q = sv.cross(e1);
+    let v = d.dot(q) * inv;
+    let w = e2.dot(q) * inv;
+    let eps = 1e-12;
+    u >= -eps && v >= -eps && u + v <= 1.0 + eps && (-eps..=1.0 + eps).contains(&w)
+}
+
+fn normal(t: &[DVec3; 3]) -> DVec3 {
+    (t[1] - t[0]).cross(t[2] - t[0])
+}
+
+fn is_coplanar(s: &[DVec3; 3], t: &[DVec3; 3]) -> bool {
+    let n = normal(s);
+    let len = n.length();
+    if len == 0.0 {
+        return false;
+    }
+    let size = (s[1] - s[0]).length().max((s[2] - s[0]).length());
+    t.iter()
+        .all(|q| (n.dot(*q - s[0]) / len).abs() <= 1e-9 * size)
+}
+
+/// Projects onto the plane of the dominant normal axis.
+fn project(n: DVec3, q: DVec3) -> [f64; 2] {
+    let a = n.abs();
+    if a.x >= a.y && a.x >= a.z {
+        [q.y, q.z]
+    } else if a.y >= a.z {
+        [q.x, q.z]
+    } else {
+        [q.x, q.y]
+    }
+}
+
+fn orient2(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
+    (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+}
+
+fn segments_cross_2d(a: [f64; 2], b: [f64; 2], c: [f64; 2], d: [f64; 2]) -> bool {
+    let (d1, d2) = (orient2(c, d, a), orient2(c, d, b));
+    let (d3, d4) = (orient2(a, b, c), orient2(a, b, d));
+    d1 * d2 < 0.0 && d3 * d4 < 0.0
+}
+
+fn point_in_triangle_2d(p: [f64; 2], t: [[f64; 2]; 3]) -> bool {
+    let (a, b, c) = (
+        orient2(t[0], t[1], p),
+        orient2(t[1], t[2], p),
+        orient2(t[2], t[0], p),
+    );
+    (a > 0.0 && b > 0.0 && c > 0.0) || (a < 0.0 && b < 0.0 && c < 0.0)
+}
+
+fn coplanar_overlap(s: &[DVec3; 3], t: &[DVec3; 3]) -> bool {
+    if !is_coplanar(s, t) {
+        return false;
+    }
+    let n = normal(s);
+    let ps = s.map(|q| project(n, q));
+    let pt = t.map(|q| project(n, q));
+    for i in 0..3 {
+        for j in 0..3 {
+            if segments_cross_2d(ps[i], ps[(i + 1) % 3], pt[j], pt[(j + 1) % 3]) {
+                return true;
+            }
+        }
+    }
+    point_in_triangle_2d(ps[0], pt) || point_in_triangle_2d(pt[0], ps)
+}
+
+/// Two triangles sharing apex `v`, coplanar, whose angular sectors overlap.
+fn coplanar_wedges_overlap(v: DVec3, s1: DVec3, s2: DVec3, t1: DVec3, t2: DVec3) -> bool {
+    let s = [v, s1, s2];
+    let t = [v, t1, t2];
+    if !is_coplanar(&s, &t) {
+        return false;
+    }
+    let n = normal(&s);
+    let ps = s.map(|q| project(n, q));
+    let pt = t.map(|q| project(n, q));
+    // overlap iff an edge from v of one lies strictly inside the other's sector
+    let inside = |w: [[f64; 2]; 3], q: [f64; 2]| {
+        let (a, b) = (orient2(w[0], w[1], q), orient2(w[0], w[2], q));
+        let o = orient2(w[0], w[1], w[2]);
+        if o > 0.0 {
+            a > 0.0 && b < 0.0
+        } else {
+            a < 0.0 && b > 0.0
+        }
+    };
+    inside(ps, pt[1])
+        || inside(ps, pt[2])
+        || inside(pt, ps[1])
+        || inside(pt, ps[2])
+        || segments_cross_2d(ps[1], ps[2], pt[1], pt[2])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crossing_and_touching() {
+        let p = vec![
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(0.0, 2.0, 0.0),
+            DVec3::new(0.5, 0.5, -1.0),
+            DVec3::new(0.5, 0.5, 1.0),
+            DVec3::new(3.0, 3.0, 1.0),
+            DVec3::new(0.0, -2.0, 0.0),
+        ];
+        assert!(triangles_intersect(&p, [0, 1, 2], [3, 4, 5]));
+        // sharing an edge, unfolded: no
+        assert!(!triangles_intersect(&p, [0, 1, 2], [1, 0, 6]));
+        // folded onto each other: yes
+        let mut q = p.clone();
+        q[6] = DVec3::new(0.5, 1.0, 0.0);
+        assert!(triangles_intersect(&q, [0, 1, 2], [1, 0, 6]));
+        let found = self_intersections(&p, &[[0, 1, 2], [3, 4, 5], [1, 0, 6]]);
+        assert_eq!(found, vec![(0, 1)]);
+    }
+}

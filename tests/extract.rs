@@ -1,0 +1,244 @@
+//! Extraction golden cases and invariants, every output through the validator.
+
+mod common;
+
+use common::*;
+use septa::extract::{Decompose, ExtractOptions, Surface, extract, label_infos};
+use septa::mesh::validate::{Options, validate};
+use septa::preprocess::{RefinedVolume, preprocess};
+use septa::volume::{Geometry, PaddedLabels};
+
+fn one_voxel() -> septa::volume::LabelVolume {
+    let mut v = vec![0i64; 27];
+    v[13] = 1;
+    volume([3, 3, 3], &v)
+}
+
+#[test]
+fn one_voxel_is_an_outward_octahedron() {
+    let vol = one_voxel();
+    let (vol, r) = resolved_outside0(vol);
+    for decompose in [Decompose::L, Decompose::H] {
+        let (_, mesh, rep) = run(
+            &vol,
+            &r,
+            ExtractOptions {
+                surface: Surface::Vesta,
+                decompose,
+            },
+        );
+        assert!(rep.passed(), "{}", rep.summary());
+        assert_eq!(mesh.vertex_count(), 6);
+        assert_eq!(mesh.triangle_count(), 8);
+        assert_eq!(mesh.patches.len(), 1);
+        // outward from label 1 = from the lower label 0 the normals point *into* 1:
+        // the patch {0, 1} is oriented from 0 into 1, i.e. inward for the voxel.
+        let inner = mesh.label_surface(vol.id_of(1).unwrap());
+        let v = mesh.signed_volume(&inner);
+        assert!((v - 1.0 / 6.0).abs() < 1e-12, "volume {v}");
+        // vertices at the six face centres of voxel (1,1,1)
+        for p in &mesh.positions {
+            let d = (*p - glam::DVec3::splat(1.0)).abs();
+            let mut c = d.to_array();
+            c.sort_by(f64::total_cmp);
+            assert_eq!(c, [0.0, 0.0, 0.5]);
+        }
+    }
+    // the faces surface is the cube
+    let (_, mesh, rep) = run(
+        &vol,
+        &r,
+        ExtractOptions {
+            surface: Surface::Faces,
+            decompose: Decompose::L,
+        },
+    );
+    assert!(rep.passed(), "{}", rep.summary());
+    assert_eq!((mesh.vertex_count(), mesh.triangle_count()), (8, 12));
+    assert!((mesh.signed_volume(&mesh.label_surface(vol.id_of(1).unwrap())) - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn two_voxels_sharing_a_vertex_are_two_octahedra_without_preprocessing() {
+    let mut v = vec![0i64; 16];
+    v[5] = 1; // (1,1,0) in 4x2x2
+    v[10] = 1; // (2,0,1)
+    let vol = volume([4, 2, 2], &v);
+    let (vol, r) = resolved_outside0(vol);
+    let grid = PaddedLabels::new(&vol, r.outside);
+    let plain = RefinedVolume::unrefined(grid, 5);
+    let mesh = extract(
+        &plain,
+        label_infos(&vol, None),
+        *vol.geometry(),
+        &ExtractOptions::default(),
+    )
+    .unwrap();
+    let rep = validate(
+        &mesh,
+        &Options {
+            intersections: true,
+            fidelity: Some((&plain, 0.5)),
+        },
+    );
+    assert!(rep.passed(), "{}", rep.summary());
+    assert_eq!((mesh.vertex_count(), mesh.triangle_count()), (12, 16));
+    let l1 = rep.labels.iter().find(|l| l.value == 1).unwrap();
+    assert_eq!(l1.components, 2);
+    // with preprocessing the contact is fattened away and the result is valid too
+    let (pre, _, rep) = run(&vol, &r, ExtractOptions::default());
+    assert!(pre.critical.counts().0 > 0);
+    assert!(rep.passed(), "{}", rep.summary());
+}
+
+#[test]
+fn checkerboard_2x2x2() {
+    let mut v = vec![0i64; 64];
+    for z in 0..2 {
+        for y in 0..2 {
+            for x in 0..2 {
+                v[(x + 1) + 4 * ((y + 1) + 4 * (z + 1))] = 1 + ((x + y + z) % 2) as i64;
+            }
+        }
+    }
+    let vol = volume([4, 4, 4], &v);
+    let (vol, r) = resolved_outside0(vol);
+    for opts in all_options() {
+        let (pre, mesh, rep) = run(&vol, &r, opts);
+        assert!(pre.guarantee.passed());
+        assert!(rep.passed(), "{opts:?}\n{}", rep.summary());
+        assert_eq!(mesh.patches.len(), 3);
+        assert!(!mesh.junctions.is_empty());
+    }
+}
+
+#[test]
+fn faces_volumes_are_exact_and_vesta_volumes_are_close() {
+    let mut rng = Rng(7);
+    for case in 0..30 {
+        let n = 6;
+        let labels = 2 + case % 4;
+        let v: Vec<i64> = (0..n * n * n)
+            .map(|_| rng.below(labels as u64) as i64)
+            .collect();
+        let (vol, r) = resolved_outside0(volume([n, n, n], &v));
+        let (pre, faces, rep) = run(
+            &vol,
+            &r,
+            ExtractOptions {
+                surface: Surface::Faces,
+                decompose: Decompose::L,
+            },
+        );
+        assert!(rep.passed(), "{}", rep.summary());
+        let (_, vesta, rep2) = run(&vol, &r, ExtractOptions::default());
+        assert!(rep2.passed(), "{}", rep2.summary());
+        let s = pre.refined.subdivision();
+        for l in 0..vol.label_count() as u16 {
+            if l == r.outside {
+                continue;
+            }
+            // exact: coarse voxels plus subvoxels of the fattened volume
+            let mut expect = 0.0;
+            for (i, &id) in vol.ids().iter().enumerate() {
+                let c = vol.dims().coords(i).map(|x| x as i32);
+                if id == l && !pre.refined.is_refined(c) {
+                    expect += 1.0;
+                }
+            }
+            for rvx in pre.refined.refined_voxels() {
+                expect +=
+                    rvx.labels.iter().filter(|&&x| x == l).count() as f64 / (s * s * s) as f64;
+            }
+            let vf = faces.signed_volume(&faces.label_surface(l));
+            assert!(
+                (vf - expect).abs() < 1e-9,
+                "label {l}: faces volume {vf} vs {expect}"
+            );
+            // VESTA: within half the voxel surface area of the voxel volume
+            let area: f64 = faces.label_surface(l).len() as f64 * 0.0 + {
+                let tris = faces.label_surface(l);
+                tris.iter()
+                    .map(|t| {
+                        let [a, b, c] = t.map(|i| faces.positions[i as usize]);
+                        0.5 * (b - a).cross(c - a).length()
+                    })
+                    .sum::<f64>()
+            };
+            let vv = vesta.signed_volume(&vesta.label_surface(l));
+            assert!(
+                (vv - expect).abs() <= 0.5 * area,
+                "label {l}: vesta volume {vv} vs {expect}, area {area}"
+            );
+        }
+    }
+}
+
+#[test]
+fn octahedron_centroid_is_the_voxel_centre_in_physical_space() {
+    let vol = one_voxel();
+    let (mut vol, r) = resolved_outside0(vol);
+    let (c, s) = (0.6f64, 0.8f64);
+    let g = Geometry::new(
+        [0.7, 1.3, 2.9],
+        [-12.0, 40.5, 7.25],
+        [[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]],
+    )
+    .unwrap();
+    vol.set_geometry(g);
+    let (_, mesh, rep) = run(&vol, &r, ExtractOptions::default());
+    assert!(rep.passed(), "{}", rep.summary());
+    let centroid = mesh.positions.iter().copied().sum::<glam::DVec3>() / mesh.vertex_count() as f64;
+    // voxel (1,1,1): origin + R·diag(spacing)·(1,1,1), computed by hand
+    let expect = glam::DVec3::new(
+        -12.0 + c * 0.7 + s * 2.9,
+        40.5 + 1.3,
+        7.25 - s * 0.7 + c * 2.9,
+    );
+    assert!(
+        (centroid - expect).length() < 1e-9,
+        "{centroid} vs {expect}"
+    );
+    // a mirroring affine keeps the normals pointing from 0 into 1
+    let m = Geometry::new(
+        [1.0, 1.0, 1.0],
+        [0.0; 3],
+        [[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+    )
+    .unwrap();
+    vol.set_geometry(m);
+    let (_, mesh, rep) = run(&vol, &r, ExtractOptions::default());
+    assert!(rep.passed(), "{}", rep.summary());
+    assert!(mesh.signed_volume(&mesh.label_surface(vol.id_of(1).unwrap())) > 0.0);
+}
+
+#[test]
+fn output_does_not_depend_on_thread_count() {
+    let mut rng = Rng(99);
+    let n = 12;
+    let v: Vec<i64> = (0..n * n * n).map(|_| rng.below(5) as i64).collect();
+    let (vol, r) = resolved_outside0(volume([n, n, n], &v));
+    let go = |threads: usize, opts: ExtractOptions| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let pre = preprocess(&vol, &r);
+                extract(
+                    &pre.refined,
+                    label_infos(&vol, None),
+                    *vol.geometry(),
+                    &opts,
+                )
+                .unwrap()
+            })
+    };
+    for opts in all_options() {
+        let (a, b) = (go(1, opts), go(2, opts));
+        assert_eq!(a.positions, b.positions);
+        assert_eq!(a.triangles, b.triangles);
+        assert_eq!(a.triangle_patch, b.triangle_patch);
+        assert_eq!(a.junctions, b.junctions);
+    }
+}
