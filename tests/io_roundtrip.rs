@@ -444,8 +444,8 @@ fn nifti2_sform() {
         put(0, &540i32.to_le_bytes());
         put(12, &4i16.to_le_bytes()); // int16
         let dim = [3i64, 5, 4, 3, 1, 1, 1, 1];
-        for i in 0..8 {
-            put(16 + 8 * i, &dim[i].to_le_bytes());
+        for (i, d) in dim.iter().enumerate() {
+            put(16 + 8 * i, &d.to_le_bytes());
             put(104 + 8 * i, &1f64.to_le_bytes());
         }
         put(168, &544i64.to_le_bytes());

@@ -357,7 +357,7 @@ impl Header {
     /// `vox_offset` as a byte offset, if it is a finite non-negative number.
     fn vox_offset(&self, path: &Path) -> Result<usize> {
         let v = self.vox_offset;
-        if !(v.is_finite() && v >= 0.0 && v < 9.0e15) {
+        if !(0.0..9.0e15).contains(&v) {
             return Err(Error::input(
                 path,
                 format!("vox_offset {v} is not a valid byte offset"),
@@ -698,10 +698,10 @@ fn nifti1_header(volume: &LabelVolume, dtype: DataType) -> Vec<u8> {
             p.f32(256 + 4 * i, v);
         }
     }
-    for r in 0..3 {
-        p.f32(268 + 4 * r, ras[r][3]);
-        for c in 0..4 {
-            p.f32(280 + 16 * r + 4 * c, ras[r][c]);
+    for (r, row) in ras.iter().enumerate() {
+        p.f32(268 + 4 * r, row[3]);
+        for (c, &v) in row.iter().enumerate() {
+            p.f32(280 + 16 * r + 4 * c, v);
         }
     }
     p.bytes(344, b"n+1\0");
