@@ -12,6 +12,8 @@
 //! and they refuse to overwrite the file being read.
 
 pub mod gz;
+pub mod mesh_formats;
+pub mod mesh_ply;
 pub mod metaimage;
 pub mod nifti;
 pub mod nrrd;

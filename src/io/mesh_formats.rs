@@ -1,0 +1,394 @@
+//! Interface meshes as OBJ, STL and VTK XML PolyData (`.vtp`) files, for tools
+//! that do not read PLY properties. All writers are atomic and check the mesh
+//! first (finite positions, valid ids, label values that fit 32 bits).
+//!
+//! # OBJ ([`write_obj`])
+//!
+//! ```text
+//! # septa 0.1.0
+//! # space LPS mm
+//! # label <value> <name>          (one per label)
+//! v <x> <y> <z>                   (every vertex, shortest exact decimal of the f64)
+//! o <name_a>__<name_b>            (one group per patch, in patch order)
+//! g <name_a>__<name_b>
+//! f <i> <j> <k>                   (1-based ids into the shared v list)
+//! ```
+//!
+//! Names have whitespace replaced by `_`. Faces are counter-clockwise about the
+//! normal, which points from label `a` into label `b`.
+//!
+//! # STL (binary)
+//!
+//! [`write_stl`] writes every triangle with the patch id in the 16-bit
+//! "attribute byte count" (saturated at 65535); [`write_stl_label_surface`]
+//! writes the surface of one label: every patch touching it, oriented outward
+//! (normals pointing away from the label), attribute 0 — closed whenever the
+//! label does not touch the edge of the volume, the useful file for 3D printing.
+//! Layout: 80-byte header (starting `septa`, never `solid`), `u32` triangle
+//! count, then per triangle `f32` normal (unit, zero for degenerate triangles),
+//! three `f32` vertices, `u16` attribute; little-endian.
+//!
+//! # VTP ([`write_vtp`])
+//!
+//! VTK XML PolyData, `version="1.0"`, `header_type="UInt64"`, little-endian,
+//! either ascii inline data or base64 appended data (each array: the base64 of
+//! its 8-byte byte count, then the base64 of its bytes; `offset` counts base64
+//! characters after the `_`). Arrays: `Points` (Float32 ×3), `Polys` with
+//! `connectivity` and `offsets` (Int64), and CellData `label_a`, `label_b`
+//! (original label values) and `patch`, all Int32. Label names are in XML
+//! comments `<!-- label <value> <name> -->` before the `VTKFile` element.
+
+use std::io::{self, Write};
+use std::path::Path;
+
+use glam::DVec3;
+
+use super::atomic_write_with;
+use super::mesh_ply::{check_writable, one_line, patch_values};
+use crate::error::{Error, Result};
+use crate::mesh::InterfaceMesh;
+use crate::volume::LabelId;
+
+const VERSION: &str = env!("CARGO_PKG_VERSION");
+
+// ───────────────────────────── OBJ ─────────────────────────────
+
+/// A name usable as one OBJ token.
+fn obj_token(name: &str) -> String {
+    let s: String = one_line(name)
+        .chars()
+        .map(|c| if c.is_whitespace() { '_' } else { c })
+        .collect();
+    if s.is_empty() {
+        "unnamed".to_string()
+    } else {
+        s
+    }
+}
+
+fn write_obj_body(w: &mut dyn Write, mesh: &InterfaceMesh) -> io::Result<()> {
+    writeln!(w, "# septa {VERSION}\n# space LPS mm")?;
+    for l in &mesh.labels {
+        writeln!(w, "# label {} {}", l.value, one_line(&l.name))?;
+    }
+    for p in &mesh.positions {
+        writeln!(w, "v {} {} {}", p.x, p.y, p.z)?;
+    }
+    for (patch, tris) in mesh.patches.iter().zip(mesh.patch_triangles()) {
+        let [a, b] = patch.labels.map(|l| obj_token(&mesh.label_name(l)));
+        writeln!(w, "o {a}__{b}\ng {a}__{b}")?;
+        for t in tris {
+            let [i, j, k] = mesh.triangles[t as usize].map(|v| u64::from(v) + 1);
+            writeln!(w, "f {i} {j} {k}")?;
+        }
+    }
+    Ok(())
+}
+
+/// Writes the mesh as a Wavefront OBJ file, one group per patch over a shared
+/// vertex list. Atomic.
+pub fn write_obj(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
+    check_writable(mesh)?;
+    atomic_write_with(path, |w| write_obj_body(w, mesh))
+}
+
+// ───────────────────────────── STL ─────────────────────────────
+
+fn stl_header(text: &str) -> [u8; 80] {
+    let mut h = [b' '; 80];
+    let bytes = text.as_bytes();
+    let n = bytes.len().min(80);
+    h[..n].copy_from_slice(&bytes[..n]);
+    h
+}
+
+/// The 50 bytes of one STL facet.
+fn stl_facet(mesh: &InterfaceMesh, t: [u32; 3], attribute: u16) -> [u8; 50] {
+    let [a, b, c] = t.map(|v| mesh.positions[v as usize]);
+    let n = (b - a).cross(c - a).normalize_or_zero();
+    let mut out = [0u8; 50];
+    for (k, p) in [n, a, b, c].iter().enumerate() {
+        for (j, x) in p.to_array().iter().enumerate() {
+            let at = 12 * k + 4 * j;
+            out[at..at + 4].copy_from_slice(&(*x as f32).to_le_bytes());
+        }
+    }
+    out[48..].copy_from_slice(&attribute.to_le_bytes());
+    out
+}
+
+fn write_stl_facets(
+    path: &Path,
+    header: &str,
+    mesh: &InterfaceMesh,
+    facets: &[([u32; 3], u16)],
+) -> Result<()> {
+    let count =
+        u32::try_from(facets.len()).map_err(|_| Error::invalid("too many triangles for STL"))?;
+    atomic_write_with(path, |w| {
+        w.write_all(&stl_header(header))?;
+        w.write_all(&count.to_le_bytes())?;
+        for &(t, attr) in facets {
+            w.write_all(&stl_facet(mesh, t, attr))?;
+        }
+        Ok(())
+    })
+}
+
+/// Writes every triangle as binary STL, the patch id (saturated at 65535) in
+/// each facet's attribute. Atomic.
+pub fn write_stl(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
+    check_writable(mesh)?;
+    let facets: Vec<_> = mesh
+        .triangles
+        .iter()
+        .zip(&mesh.triangle_patch)
+        .map(|(&t, &p)| (t, u16::try_from(p).unwrap_or(u16::MAX)))
+        .collect();
+    let header = format!("septa {VERSION} interface patches, LPS mm, attribute = patch id");
+    write_stl_facets(path, &header, mesh, &facets)
+}
+
+/// Writes the closed surface of `label` (dense id) as binary STL: the
+/// triangles of every patch touching it, normals pointing away from it. Atomic.
+pub fn write_stl_label_surface(path: &Path, mesh: &InterfaceMesh, label: LabelId) -> Result<()> {
+    check_writable(mesh)?;
+    if label as usize >= mesh.labels.len() {
+        return Err(Error::invalid(format!(
+            "label id {label} does not exist ({} labels)",
+            mesh.labels.len()
+        )));
+    }
+    let facets: Vec<_> = mesh
+        .label_surface(label)
+        .into_iter()
+        .map(|t| (t, 0))
+        .collect();
+    if facets.is_empty() {
+        let name = mesh.label_name(label);
+        return Err(Error::invalid(format!(
+            "label {name} has no surface: it touches no other label"
+        )));
+    }
+    let header = format!(
+        "septa {VERSION} surface of label {} {}, LPS mm",
+        mesh.label_value(label),
+        one_line(&mesh.label_name(label))
+    );
+    write_stl_facets(path, &header, mesh, &facets)
+}
+
+// ───────────────────────────── VTP ─────────────────────────────
+
+/// How a `.vtp` file stores its arrays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VtpEncoding {
+    /// Numbers as text inside each `DataArray`.
+    Ascii,
+    /// Base64 appended data: valid XML, a third bigger than raw binary.
+    Base64,
+}
+
+/// One array of a `.vtp` file: name, VTK type, components, and its values
+/// as little-endian bytes (binary) or text (ascii).
+struct VtpArray {
+    name: &'static str,
+    vtk_type: &'static str,
+    components: usize,
+    bytes: Vec<u8>,
+    text: String,
+}
+
+/// Values of one type, encoded both ways lazily by the caller's choice.
+trait VtpValue: Copy + std::fmt::Display {
+    const TYPE: &'static str;
+    fn push_le(self, out: &mut Vec<u8>);
+}
+
+macro_rules! vtp_value {
+    ($t:ty, $name:literal) => {
+        impl VtpValue for $t {
+            const TYPE: &'static str = $name;
+            fn push_le(self, out: &mut Vec<u8>) {
+                out.extend_from_slice(&self.to_le_bytes());
+            }
+        }
+    };
+}
+vtp_value!(f32, "Float32");
+vtp_value!(i32, "Int32");
+vtp_value!(i64, "Int64");
+
+fn vtp_array<T: VtpValue>(
+    name: &'static str,
+    components: usize,
+    values: &[T],
+    enc: VtpEncoding,
+) -> VtpArray {
+    let (mut bytes, mut text) = (Vec::new(), String::new());
+    match enc {
+        VtpEncoding::Base64 => values.iter().for_each(|v| v.push_le(&mut bytes)),
+        VtpEncoding::Ascii => {
+            use std::fmt::Write as _;
+            for (i, v) in values.iter().enumerate() {
+                let sep = if i % (3 * components.max(1)) == 0 {
+                    "\n"
+                } else {
+                    " "
+                };
+                let _ = write!(text, "{sep}{v}");
+            }
+        }
+    }
+    VtpArray {
+        name,
+        vtk_type: T::TYPE,
+        components,
+        bytes,
+        text,
+    }
+}
+
+fn vtp_arrays(mesh: &InterfaceMesh, enc: VtpEncoding) -> Result<Vec<VtpArray>> {
+    let values = patch_values(mesh)?;
+    let points: Vec<f32> = mesh
+        .positions
+        .iter()
+        .flat_map(|p: &DVec3| p.to_array().map(|c| c as f32))
+        .collect();
+    let conn: Vec<i64> = mesh
+        .triangles
+        .iter()
+        .flatten()
+        .map(|&v| i64::from(v))
+        .collect();
+    let offsets: Vec<i64> = (1..=mesh.triangles.len() as i64).map(|t| 3 * t).collect();
+    let tp = &mesh.triangle_patch;
+    let label_a: Vec<i32> = tp.iter().map(|&p| values[p as usize][0]).collect();
+    let label_b: Vec<i32> = tp.iter().map(|&p| values[p as usize][1]).collect();
+    let patch: Vec<i32> = tp
+        .iter()
+        .map(|&p| i32::try_from(p).unwrap_or(i32::MAX))
+        .collect();
+    Ok(vec![
+        vtp_array("Points", 3, &points, enc),
+        vtp_array("connectivity", 1, &conn, enc),
+        vtp_array("offsets", 1, &offsets, enc),
+        vtp_array("label_a", 1, &label_a, enc),
+        vtp_array("label_b", 1, &label_b, enc),
+        vtp_array("patch", 1, &patch, enc),
+    ])
+}
+
+/// Base64 length of `n` bytes, with padding.
+fn b64_len(n: usize) -> usize {
+    n.div_ceil(3) * 4
+}
+
+/// Standard base64 with padding.
+fn base64(bytes: &[u8]) -> Vec<u8> {
+    const ABC: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = Vec::with_capacity(b64_len(bytes.len()));
+    for c in bytes.chunks(3) {
+        let n = (u32::from(c[0]) << 16)
+            | (u32::from(*c.get(1).unwrap_or(&0)) << 8)
+            | u32::from(*c.get(2).unwrap_or(&0));
+        for k in 0..4 {
+            let ch = if k <= c.len() {
+                ABC[(n >> (18 - 6 * k)) as usize & 63]
+            } else {
+                b'='
+            };
+            out.push(ch);
+        }
+    }
+    out
+}
+
+/// The `<DataArray …>` element; `offset` is used for appended data.
+fn data_array(w: &mut dyn Write, a: &VtpArray, offset: usize, enc: VtpEncoding) -> io::Result<()> {
+    let comps = if a.components > 1 {
+        format!(" NumberOfComponents=\"{}\"", a.components)
+    } else {
+        String::new()
+    };
+    write!(
+        w,
+        "        <DataArray type=\"{}\" Name=\"{}\"{comps}",
+        a.vtk_type, a.name
+    )?;
+    match enc {
+        VtpEncoding::Base64 => writeln!(w, " format=\"appended\" offset=\"{offset}\"/>"),
+        VtpEncoding::Ascii => writeln!(w, " format=\"ascii\">{}\n        </DataArray>", a.text),
+    }
+}
+
+/// A label name made safe for an XML comment.
+fn xml_comment_text(s: &str) -> String {
+    one_line(s).replace("--", "- -")
+}
+
+fn write_vtp_body(
+    w: &mut dyn Write,
+    mesh: &InterfaceMesh,
+    arrays: &[VtpArray],
+    enc: VtpEncoding,
+) -> io::Result<()> {
+    writeln!(
+        w,
+        "<?xml version=\"1.0\"?>\n<!-- septa {VERSION}, space LPS mm -->"
+    )?;
+    for l in &mesh.labels {
+        writeln!(
+            w,
+            "<!-- label {} {} -->",
+            l.value,
+            xml_comment_text(&l.name)
+        )?;
+    }
+    writeln!(
+        w,
+        "<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">"
+    )?;
+    writeln!(w, "  <PolyData>")?;
+    let (n, t) = (mesh.vertex_count(), mesh.triangle_count());
+    writeln!(
+        w,
+        "    <Piece NumberOfPoints=\"{n}\" NumberOfVerts=\"0\" NumberOfLines=\"0\" NumberOfStrips=\"0\" NumberOfPolys=\"{t}\">"
+    )?;
+    let mut offsets = Vec::with_capacity(arrays.len());
+    let mut at = 0;
+    for a in arrays {
+        offsets.push(at);
+        at += b64_len(8) + b64_len(a.bytes.len());
+    }
+    let groups: [(&str, &str, std::ops::Range<usize>); 3] = [
+        ("Points", "", 0..1),
+        ("Polys", "", 1..3),
+        ("CellData", " Scalars=\"patch\"", 3..6),
+    ];
+    for (tag, attrs, range) in groups {
+        writeln!(w, "      <{tag}{attrs}>")?;
+        for i in range {
+            data_array(w, &arrays[i], offsets[i], enc)?;
+        }
+        writeln!(w, "      </{tag}>")?;
+    }
+    writeln!(w, "    </Piece>\n  </PolyData>")?;
+    if enc == VtpEncoding::Base64 {
+        write!(w, "  <AppendedData encoding=\"base64\">\n   _")?;
+        for a in arrays {
+            w.write_all(&base64(&(a.bytes.len() as u64).to_le_bytes()))?;
+            w.write_all(&base64(&a.bytes))?;
+        }
+        writeln!(w, "\n  </AppendedData>")?;
+    }
+    writeln!(w, "</VTKFile>")
+}
+
+/// Writes the mesh as VTK XML PolyData (layout in the module docs). Atomic.
+pub fn write_vtp(path: &Path, mesh: &InterfaceMesh, encoding: VtpEncoding) -> Result<()> {
+    check_writable(mesh)?;
+    let arrays = vtp_arrays(mesh, encoding)?;
+    atomic_write_with(path, |w| write_vtp_body(w, mesh, &arrays, encoding))
+}
