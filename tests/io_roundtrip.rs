@@ -352,6 +352,27 @@ fn nifti_pixdim_only() {
     );
 }
 
+/// Spatial units other than mm (xyzt_units & 7: 1 = metre, 3 = micron) scale
+/// the affine to mm.
+#[test]
+fn nifti_units_scale_to_mm() {
+    let dir = tmp();
+    let (r, g) = oblique_lps();
+    let path = dir.path().join("units.nii");
+    write_label_volume(&path, &volume([0, 1, 2, 3, 4], g)).unwrap();
+    let mut bytes = std::fs::read(&path).unwrap();
+    assert_eq!(bytes[123], 2, "written in mm");
+    for (unit, scale) in [(1u8, 1000.0), (3, 0.001), (0, 1.0), (2 | 8, 1.0)] {
+        bytes[123] = unit;
+        std::fs::write(&path, &bytes).unwrap();
+        let img = read_image(&path, &ReadOptions::default()).unwrap();
+        let spacing = SPACING.map(|s| s * scale);
+        let origin = ORIGIN.map(|o| o * scale);
+        let tol = 1e-4 * scale.max(1.0);
+        assert_positions(&img.geometry, |ijk| expected(&r, spacing, origin, ijk), tol);
+    }
+}
+
 /// scl_slope/scl_inter are applied (samples become float64).
 #[test]
 fn nifti_scaling() {

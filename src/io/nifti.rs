@@ -7,7 +7,8 @@
 //! sform when `sform_code > 0`, else the qform (quaternion, `qfac = pixdim[0]`,
 //! spacings `|pixdim[1..3]|`) when `qform_code > 0`, else the plain
 //! `diag(pixdim[1..3])` of "method 1". NIfTI affines map to RAS; septa's
-//! [`Geometry`] is LPS, converted by [`Geometry::from_ras_affine`].
+//! [`Geometry`] is LPS, converted by [`Geometry::from_ras_affine`]. Affines in
+//! metres or microns (`xyzt_units`) are scaled to millimetres.
 
 use std::path::{Path, PathBuf};
 
@@ -41,6 +42,8 @@ struct Header {
     quatern: [f64; 3],
     qoffset: [f64; 3],
     srow: [[f64; 4]; 3],
+    /// `xyzt_units`: bits 0-2 give the spatial unit.
+    xyzt_units: i32,
 }
 
 /// Reads a NIfTI-1/2 file: `.nii`, `.nii.gz`, or either half of a `.hdr`/`.img`
@@ -319,6 +322,7 @@ fn parse_nifti1(path: &Path, f: &Fields) -> Result<Header> {
         quatern: std::array::from_fn(|i| f.f32(256 + 4 * i)),
         qoffset: std::array::from_fn(|i| f.f32(268 + 4 * i)),
         srow: std::array::from_fn(|r| std::array::from_fn(|c| f.f32(280 + 16 * r + 4 * c))),
+        xyzt_units: i32::from(f.bytes.get(123).copied().unwrap_or(0)),
     })
 }
 
@@ -339,6 +343,7 @@ fn parse_nifti2(path: &Path, f: &Fields) -> Result<Header> {
         quatern: std::array::from_fn(|i| f.f64(352 + 8 * i)),
         qoffset: std::array::from_fn(|i| f.f64(376 + 8 * i)),
         srow: std::array::from_fn(|r| std::array::from_fn(|c| f.f64(400 + 32 * r + 8 * c))),
+        xyzt_units: f.i32(500),
     })
 }
 
@@ -430,10 +435,10 @@ fn data_type(path: &Path, code: i16) -> Result<DataType> {
 
 // ----------------------------------------------------------------- geometry
 
-/// The index → LPS map: sform, else qform, else `diag(pixdim)`.
+/// The index → LPS map: sform, else qform, else `diag(pixdim)`, in mm.
 fn geometry(path: &Path, h: &Header) -> Result<Geometry> {
     let axes = h.axes(path)?;
-    let ras = if h.sform_code > 0 {
+    let mut ras = if h.sform_code > 0 {
         h.srow
     } else if h.qform_code > 0 {
         qform_affine(path, h, axes)?
@@ -447,8 +452,20 @@ fn geometry(path: &Path, h: &Header) -> Result<Geometry> {
     } else {
         "pixdim"
     };
+    let to_mm = mm_per_unit(h.xyzt_units);
+    ras.iter_mut().flatten().for_each(|v| *v *= to_mm);
     Geometry::from_ras_affine(ras)
         .map_err(|e| Error::input(path, format!("invalid {which} geometry: {e}")))
+}
+
+/// Millimetres per spatial unit of `xyzt_units` (metre 1000, micron 0.001;
+/// mm and "unknown" 1), scaling the whole affine as ITK's NIfTI reader does.
+fn mm_per_unit(xyzt_units: i32) -> f64 {
+    match xyzt_units & 0x07 {
+        1 => 1000.0,
+        3 => 0.001,
+        _ => 1.0,
+    }
 }
 
 /// Spacing of spatial axis `i` (1-based) for the qform: `|pixdim[i]|`, 1 for
