@@ -21,12 +21,18 @@ fn phantom() -> LabelVolume {
     for z in 0..N {
         for y in 0..N {
             for x in 0..N {
-                let r = ((x as f64 - c).powi(2) + (y as f64 - c).powi(2) + (z as f64 - c).powi(2)).sqrt();
+                let r = ((x as f64 - c).powi(2) + (y as f64 - c).powi(2) + (z as f64 - c).powi(2))
+                    .sqrt();
                 values.push(((c - r).max(0.0) / 22.0).ceil().min(5.0) as i64);
             }
         }
     }
-    let geometry = Geometry::new([0.9, 0.9, 1.2], [-115.0, -115.0, -150.0], Geometry::IDENTITY_DIRECTION).unwrap();
+    let geometry = Geometry::new(
+        [0.9, 0.9, 1.2],
+        [-115.0, -115.0, -150.0],
+        Geometry::IDENTITY_DIRECTION,
+    )
+    .unwrap();
     LabelVolume::from_values(dims, &values, geometry).unwrap()
 }
 

@@ -448,6 +448,24 @@ fn nifti_four_d() {
     check_pattern(&path);
 }
 
+/// 4-D NRRD (time axis last, its spacing the time step) and MetaImage (the 4th
+/// ElementSpacing).
+#[test]
+fn four_d_nrrd_and_metaimage() {
+    let dir = tmp();
+    let data = [pattern_u8(), pattern_u8()].concat();
+    let header = "NRRD0004\ntype: uint8\ndimension: 4\nsizes: 5 4 3 2\nspacings: 0.7 1.3 2.1 0.25\nkinds: domain domain domain time\nencoding: raw\n\n";
+    let nrrd = write(&dir.path().join("t.nrrd"), &[header.as_bytes(), &data]);
+    let header = "NDims = 4\nDimSize = 5 4 3 2\nElementSpacing = 0.7 1.3 2.1 0.25\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n";
+    let mha = write(&dir.path().join("t.mha"), &[header.as_bytes(), &data]);
+    for path in [nrrd, mha] {
+        let img = read_image(&path, &ReadOptions::default()).unwrap();
+        assert_eq!(img.dims, vec![5, 4, 3, 2], "{}", path.display());
+        assert_eq!(img.time_step, Some(0.25), "{}", path.display());
+        assert_eq!(img.geometry.spacing(), SPACING);
+    }
+}
+
 /// NIfTI-2 (540-byte header, f64 affine), little- and big-endian.
 #[test]
 fn nifti2_sform() {

@@ -52,11 +52,12 @@ pub fn read(path: &Path) -> Result<Image> {
         }
     };
     let samples = decode(&data_path, &data, &spec)?;
+    let time_step = time_step(&fields, spec.dims.len());
     Ok(Image {
         dims: image_shape(spec.dims),
         samples,
         geometry,
-        time_step: None,
+        time_step,
         path: path.to_path_buf(),
     })
 }
@@ -239,6 +240,13 @@ fn geometry(path: &Path, f: &HashMap<String, String>, ndims: usize) -> Result<Ge
         }
     }
     Geometry::new(spacing, origin, direction).map_err(|e| in_file(path, e))
+}
+
+/// The 4th `ElementSpacing` of a 4-D image.
+fn time_step(f: &HashMap<String, String>, ndims: usize) -> Option<f64> {
+    let text = get(f, &["elementspacing", "elementsize"])?;
+    let v = text.split_whitespace().nth(3)?.parse::<f64>().ok()?;
+    (ndims == 4 && v.is_finite() && v != 0.0).then_some(v)
 }
 
 // --------------------------------------------------------------------- data

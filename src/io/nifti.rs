@@ -183,7 +183,8 @@ fn data_path_of(header_path: &Path) -> Result<PathBuf> {
     companion(header_path, &stem, "img")
 }
 
-/// The first existing sibling `stem.ext`, `stem.ext.gz`, `stem.EXT`, `stem.EXT.gz`.
+/// The first existing sibling `stem.ext`, `stem.ext.gz`, `stem.EXT`, `stem.EXT.gz`
+/// (`ext` is `hdr` or `img`).
 fn companion(path: &Path, stem: &str, ext: &str) -> Result<PathBuf> {
     let upper = ext.to_ascii_uppercase();
     let candidates = [
@@ -200,7 +201,8 @@ fn companion(path: &Path, stem: &str, ext: &str) -> Result<PathBuf> {
             Error::input(
                 path,
                 format!(
-                    "missing data file: the .{ext} file of this .hdr/.img pair ({}) does not exist",
+                    "missing {} file: the .{ext} file of this .hdr/.img pair ({}) does not exist",
+                    if ext == "hdr" { "header" } else { "data" },
                     candidates[0]
                 ),
             )

@@ -63,7 +63,7 @@ pub fn read(path: &Path) -> Result<Image> {
         dims: image_shape(layout.dims.clone()),
         samples,
         geometry: layout.geometry,
-        time_step: None,
+        time_step: layout.time_step,
         path: path.to_path_buf(),
     })
 }
@@ -282,47 +282,60 @@ struct Layout {
     /// `byte skip` (−1: data at the end of the file).
     byte_skip: i64,
     geometry: Geometry,
+    /// Spacing of the first trailing non-spatial axis (time), when given.
+    time_step: Option<f64>,
 }
 
 impl Layout {
     fn from_header(path: &Path, h: &Header) -> Result<Layout> {
-        let dtype = parse_type(path, h.require(path, "type", "type")?)?;
-        let encoding = parse_encoding(path, h.require(path, "encoding", "encoding")?)?;
         let sizes = sizes(path, h)?;
         let spatial = spatial_axes(path, h, sizes.len())?;
-        let dims = image_dims(path, &sizes, &spatial)?;
-        let little_endian = match h.get("endian").map(str::to_ascii_lowercase).as_deref() {
-            None | Some("little") => true,
-            Some("big") => false,
-            Some(other) => {
-                return Err(Error::input(
-                    path,
-                    format!("endian is {other:?}: expected \"little\" or \"big\""),
-                ));
-            }
-        };
-        let byte_skip = match h.get("byteskip") {
-            None => 0,
-            Some(v) => match v.parse::<i64>() {
-                Ok(n) if n >= -1 => n,
-                _ => {
-                    return Err(Error::input(
-                        path,
-                        format!("byte skip is {v:?}: expected -1 or a byte count"),
-                    ));
-                }
-            },
-        };
-        let geometry = geometry(path, h, &spatial)?;
         Ok(Layout {
-            dims,
-            dtype,
-            encoding,
-            little_endian,
-            byte_skip,
-            geometry,
+            dims: image_dims(path, &sizes, &spatial)?,
+            dtype: parse_type(path, h.require(path, "type", "type")?)?,
+            encoding: parse_encoding(path, h.require(path, "encoding", "encoding")?)?,
+            little_endian: little_endian(path, h)?,
+            byte_skip: byte_skip(path, h)?,
+            geometry: geometry(path, h, &spatial)?,
+            time_step: time_step(h, &spatial),
         })
     }
+}
+
+/// `endian` (little when absent, as for single-byte types).
+fn little_endian(path: &Path, h: &Header) -> Result<bool> {
+    match h.get("endian").map(str::to_ascii_lowercase).as_deref() {
+        None | Some("little") => Ok(true),
+        Some("big") => Ok(false),
+        Some(other) => Err(Error::input(
+            path,
+            format!("endian is {other:?}: expected \"little\" or \"big\""),
+        )),
+    }
+}
+
+/// `byte skip`: a byte count, or −1 for "the data ends the file".
+fn byte_skip(path: &Path, h: &Header) -> Result<i64> {
+    match h.get("byteskip") {
+        None => Ok(0),
+        Some(v) => match v.parse::<i64>() {
+            Ok(n) if n >= -1 => Ok(n),
+            _ => Err(Error::input(
+                path,
+                format!("byte skip is {v:?}: expected -1 or a byte count"),
+            )),
+        },
+    }
+}
+
+/// The `spacings` entry of the first axis after the last spatial one.
+fn time_step(h: &Header, spatial: &[bool]) -> Option<f64> {
+    let axis = spatial.iter().rposition(|&s| s)? + 1;
+    let token = h.get("spacings")?.split_whitespace().nth(axis)?;
+    token
+        .parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite() && *v != 0.0)
 }
 
 /// `dimension` and `sizes`, each size at least 1.
