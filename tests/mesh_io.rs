@@ -693,7 +693,7 @@ fn parse_vtp(text: &str) -> (HashMap<String, Vec<f64>>, HashMap<String, String>)
             }
             "appended" => {
                 let offset: usize = attr(tag, "offset").unwrap().parse().unwrap();
-                let rest = appended[offset..].as_bytes();
+                let rest = &appended.as_bytes()[offset..];
                 let n = u64::from_le_bytes(b64_decode(&rest[..12]).try_into().unwrap()) as usize;
                 let data = b64_decode(&rest[12..12 + n.div_ceil(3) * 4]);
                 assert_eq!(data.len(), n);
@@ -753,6 +753,31 @@ fn vtp_ascii_and_base64_hold_points_polys_and_cell_data() {
     }
 }
 
+// ───────────────────────────── manifest ─────────────────────────────
+
+#[test]
+fn manifest_lists_patches_and_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = octahedron();
+    let mut manifest = septa::io::manifest::Manifest::new(&mesh);
+    manifest.add_file("ply", &dir.path().join("octa.ply"));
+    let path = dir.path().join("manifest.json");
+    manifest.write(&path).unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    assert_eq!(json["triangles"], 8);
+    assert_eq!(json["labels"][1]["name"], "left hippocampus");
+    let p1 = &json["patches"][1];
+    assert_eq!(
+        (p1["label_a"].as_i64(), p1["label_b"].as_i64()),
+        (Some(5), Some(9))
+    );
+    assert_eq!(p1["triangles"], 4);
+    // four faces of a 1.5 × 1.5 × 2.25 half-octahedron
+    let face = 0.5 * (DVec3::new(-1.5, 1.5, 0.0).cross(DVec3::new(-1.5, 0.0, -2.25))).length();
+    assert!((p1["area_mm2"].as_f64().unwrap() - 4.0 * face).abs() < 1e-9);
+    assert_eq!(json["files"][0]["kind"], "ply");
+}
+
 // ───────────────────────────── speed ─────────────────────────────
 
 /// A grid of `n × n` vertices, two triangles per cell, four patches.
@@ -795,6 +820,11 @@ fn ply_write_speed_1m_vertices_2m_triangles() {
     let t = std::time::Instant::now();
     write_ply(&path, &mesh).unwrap();
     let write = t.elapsed();
+    let shm = Path::new("/dev/shm/septa-mesh-io-speed.ply");
+    let t = std::time::Instant::now();
+    write_ply(shm, &mesh).unwrap();
+    println!("PLY write to /dev/shm {:?}", t.elapsed());
+    std::fs::remove_file(shm).unwrap();
     let t = std::time::Instant::now();
     let read = read_ply(&path).unwrap();
     let read_time = t.elapsed();

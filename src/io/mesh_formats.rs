@@ -288,19 +288,19 @@ fn b64_len(n: usize) -> usize {
 /// Standard base64 with padding.
 fn base64(bytes: &[u8]) -> Vec<u8> {
     const ABC: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let quad = |n: u32| [18, 12, 6, 0].map(|s| ABC[(n >> s) as usize & 63]);
     let mut out = Vec::with_capacity(b64_len(bytes.len()));
-    for c in bytes.chunks(3) {
-        let n = (u32::from(c[0]) << 16)
-            | (u32::from(*c.get(1).unwrap_or(&0)) << 8)
-            | u32::from(*c.get(2).unwrap_or(&0));
-        for k in 0..4 {
-            let ch = if k <= c.len() {
-                ABC[(n >> (18 - 6 * k)) as usize & 63]
-            } else {
-                b'='
-            };
-            out.push(ch);
-        }
+    let chunks = bytes.chunks_exact(3);
+    let tail = chunks.remainder();
+    for c in chunks {
+        out.extend_from_slice(&quad(u32::from_be_bytes([0, c[0], c[1], c[2]])));
+    }
+    if !tail.is_empty() {
+        let mut last = [0u8; 3];
+        last[..tail.len()].copy_from_slice(tail);
+        let mut q = quad(u32::from_be_bytes([0, last[0], last[1], last[2]]));
+        q[tail.len() + 1..].fill(b'=');
+        out.extend_from_slice(&q);
     }
     out
 }

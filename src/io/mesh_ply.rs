@@ -337,17 +337,26 @@ fn header(mesh: &InterfaceMesh, extra_comments: &[String], elements: Vec<Element
 
 // ───────────────────────────── writers ─────────────────────────────
 
-/// Writes elements one by one through ply-rs-bw's binary element writer.
+/// Writes elements one by one through ply-rs-bw's binary element writer, into
+/// a local buffer handed to `w` a megabyte at a time: the element writer makes
+/// one small write per property, and through `dyn Write` those cost more than
+/// the encoding itself.
 fn write_items<E: PropertyAccess>(
-    mut w: &mut dyn Write,
+    w: &mut dyn Write,
     def: &ElementDef,
     items: impl Iterator<Item = E>,
 ) -> io::Result<()> {
+    const CHUNK: usize = 1 << 20;
     let writer = Writer::<E>::new();
+    let mut buf = Vec::with_capacity(CHUNK + 256);
     for item in items {
-        writer.write_little_endian_element(&mut w, &item, def)?;
+        writer.write_little_endian_element(&mut buf, &item, def)?;
+        if buf.len() >= CHUNK {
+            w.write_all(&buf)?;
+            buf.clear();
+        }
     }
-    Ok(())
+    w.write_all(&buf)
 }
 
 fn write_header_to(mut w: &mut dyn Write, h: &Header) -> io::Result<()> {
