@@ -14,8 +14,9 @@ use flate2::read::{MultiGzDecoder, ZlibDecoder};
 
 use crate::error::{Error, Result};
 
-/// The largest ratio of decompressed to compressed size that DEFLATE can reach
-/// (a stored-length-258 match costs at least one bit in the best case: 258·8/2).
+/// The largest ratio of decompressed to compressed size that DEFLATE can reach:
+/// a 258-byte match costs at least 2 bits (length and distance codes of one bit
+/// each), so one compressed byte yields at most 258 · 8 / 2 = 1032 bytes.
 const MAX_DEFLATE_RATIO: u64 = 1032;
 
 /// True when `bytes` starts with the gzip magic (`1f 8b`).
