@@ -832,6 +832,9 @@ fn ply_write_speed_1m_vertices_2m_triangles() {
     write_vtp(&dir.path().join("big.vtp"), &mesh, VtpEncoding::Base64).unwrap();
     let vtp = t.elapsed();
     let t = std::time::Instant::now();
+    let patches = write_patch_plys(dir.path(), "p", &mesh).unwrap();
+    println!("{} per-patch PLYs {:?}", patches.len(), t.elapsed());
+    let t = std::time::Instant::now();
     write_stl(&dir.path().join("big.stl"), &mesh).unwrap();
     let stl = t.elapsed();
     let t = std::time::Instant::now();

@@ -394,53 +394,85 @@ pub fn write_ply(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
     })
 }
 
-/// Global vertex ids used by `triangles`, sorted, and a map global → local.
-fn compact(n: usize, triangles: impl Iterator<Item = [u32; 3]>) -> (Vec<u32>, Vec<u32>) {
-    let mut local = vec![u32::MAX; n];
-    let mut used: Vec<u32> = triangles.flatten().collect();
+/// Global vertex ids used by `vertices`, sorted and unique.
+fn compact(vertices: impl Iterator<Item = u32>) -> Vec<u32> {
+    let mut used: Vec<u32> = vertices.collect();
     used.sort_unstable();
     used.dedup();
-    for (i, &v) in used.iter().enumerate() {
-        local[v as usize] = i as u32;
+    used
+}
+
+/// Global → local vertex ids of one file at a time: a table over all vertices,
+/// allocated once and reset after each patch (only the entries used), so that
+/// writing every patch costs O(vertices + corners), not O(patches × vertices).
+struct LocalIds(Vec<u32>);
+
+impl LocalIds {
+    fn new(n: usize) -> Self {
+        LocalIds(vec![u32::MAX; n])
     }
-    (used, local)
+    /// Numbers `used` (global ids) 0, 1, 2, …
+    fn assign(&mut self, used: &[u32]) {
+        for (i, &v) in used.iter().enumerate() {
+            self.0[v as usize] = i as u32;
+        }
+    }
+    fn get(&self, v: u32) -> i32 {
+        self.0[v as usize] as i32
+    }
+    fn reset(&mut self, used: &[u32]) {
+        for &v in used {
+            self.0[v as usize] = u32::MAX;
+        }
+    }
 }
 
 /// Writes one patch (its triangles, over only the vertices they use, each with
 /// its global id as `vid`) as a binary PLY. Atomic.
 pub fn write_patch_ply(path: &Path, mesh: &InterfaceMesh, patch: u32) -> Result<()> {
     check_writable(mesh)?;
-    let Some(&[va, vb]) = patch_values(mesh)?.get(patch as usize) else {
+    let values = patch_values(mesh)?;
+    let tris: Vec<u32> = (0..mesh.triangle_count() as u32)
+        .filter(|&t| mesh.triangle_patch[t as usize] == patch)
+        .collect();
+    let mut local = LocalIds::new(mesh.vertex_count());
+    write_patch(path, mesh, patch, &values, &tris, &mut local)
+}
+
+/// Writes patch `patch` made of triangles `tris` (the mesh is checked).
+fn write_patch(
+    path: &Path,
+    mesh: &InterfaceMesh,
+    patch: u32,
+    values: &[[i32; 2]],
+    tris: &[u32],
+    local: &mut LocalIds,
+) -> Result<()> {
+    let Some(&[va, vb]) = values.get(patch as usize) else {
         return Err(Error::invalid(format!(
             "patch {patch} does not exist ({} patches)",
             mesh.patches.len()
         )));
     };
-    let tris: Vec<[u32; 3]> = mesh
-        .triangles
-        .iter()
-        .zip(&mesh.triangle_patch)
-        .filter(|(_, p)| **p == patch)
-        .map(|(t, _)| *t)
-        .collect();
-    let (used, local) = compact(mesh.vertex_count(), tris.iter().copied());
+    let corners = |t: &u32| mesh.triangles[*t as usize];
+    let used = compact(tris.iter().flat_map(corners));
+    local.assign(&used);
     let comment = format!("patch {patch} {va} {vb}");
-    let h = header(
-        mesh,
-        &[comment],
-        vec![vertex_element(used.len(), true), face_element(tris.len())],
-    );
+    let elements = vec![vertex_element(used.len(), true), face_element(tris.len())];
+    let h = header(mesh, &[comment], elements);
     let vertices = used.iter().map(|&v| VertexOut::new_at(mesh, v));
     let faces = tris.iter().map(|t| FaceOut {
-        v: t.map(|v| local[v as usize] as i32),
+        v: corners(t).map(|v| local.get(v)),
         labels: [va, vb],
         patch,
     });
-    atomic_write_with(path, |w| {
+    let written = atomic_write_with(path, |w| {
         write_header_to(w, &h)?;
         write_items(w, &h.elements["vertex"], vertices)?;
         write_items(w, &h.elements["face"], faces)
-    })
+    });
+    local.reset(&used);
+    written
 }
 
 /// File name of a patch's PLY: `<prefix><value_a>_<value_b>.ply`.
@@ -460,29 +492,31 @@ pub fn patch_file_name(mesh: &InterfaceMesh, prefix: &str, patch: u32) -> String
 /// Writes every patch to `dir/<prefix><value_a>_<value_b>.ply` (see
 /// [`write_patch_ply`]); returns the paths in patch order.
 pub fn write_patch_plys(dir: &Path, prefix: &str, mesh: &InterfaceMesh) -> Result<Vec<PathBuf>> {
-    (0..mesh.patches.len() as u32)
-        .map(|p| {
-            let path = dir.join(patch_file_name(mesh, prefix, p));
-            write_patch_ply(&path, mesh, p).map(|()| path)
-        })
-        .collect()
+    check_writable(mesh)?;
+    let values = patch_values(mesh)?;
+    let groups = mesh.patch_triangles();
+    let mut local = LocalIds::new(mesh.vertex_count());
+    let mut write = |(p, tris): (usize, &Vec<u32>)| {
+        let path = dir.join(patch_file_name(mesh, prefix, p as u32));
+        write_patch(&path, mesh, p as u32, &values, tris, &mut local).map(|()| path)
+    };
+    groups.iter().enumerate().map(write).collect()
 }
 
-/// Edges `[local v1, local v2, curve]` of every junction curve.
-fn junction_edges(mesh: &InterfaceMesh, local: &[u32]) -> Vec<[u32; 3]> {
+/// Edges (local vertex ids, curve index) of every junction curve.
+fn junction_edges(mesh: &InterfaceMesh, local: &LocalIds) -> Vec<([i32; 2], u32)> {
     let mut edges = Vec::new();
     for (c, curve) in mesh.junctions.iter().enumerate() {
         let v = &curve.vertices;
-        for w in v.windows(2) {
-            edges.push([local[w[0] as usize], local[w[1] as usize], c as u32]);
-        }
+        let mut pairs: Vec<(u32, u32)> = v.windows(2).map(|w| (w[0], w[1])).collect();
         if curve.closed && v.len() > 2 {
-            edges.push([
-                local[v[v.len() - 1] as usize],
-                local[v[0] as usize],
-                c as u32,
-            ]);
+            pairs.push((v[v.len() - 1], v[0]));
         }
+        edges.extend(
+            pairs
+                .iter()
+                .map(|&(a, b)| ([local.get(a), local.get(b)], c as u32)),
+        );
     }
     edges
 }
@@ -516,8 +550,13 @@ pub fn write_junctions_ply(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
         ));
     }
     let labels = junction_labels(mesh)?;
-    let all = mesh.junctions.iter().map(|c| c.vertices.as_slice());
-    let (used, local) = compact(n, all.flat_map(|v| v.iter().map(|&x| [x, x, x])));
+    let used = compact(
+        mesh.junctions
+            .iter()
+            .flat_map(|c| c.vertices.iter().copied()),
+    );
+    let mut local = LocalIds::new(n);
+    local.assign(&used);
     let edges = junction_edges(mesh, &local);
     let h = header(
         mesh,
@@ -525,10 +564,10 @@ pub fn write_junctions_ply(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
         vec![vertex_element(used.len(), true), edge_element(edges.len())],
     );
     let vertices = used.iter().map(|&v| VertexOut::new_at(mesh, v));
-    let items = edges.iter().map(|e| EdgeOut {
-        v: [e[0] as i32, e[1] as i32],
-        curve: e[2],
-        labels: &labels[e[2] as usize],
+    let items = edges.iter().map(|&(v, curve)| EdgeOut {
+        v,
+        curve,
+        labels: &labels[curve as usize],
     });
     atomic_write_with(path, |w| {
         write_header_to(w, &h)?;
@@ -798,12 +837,11 @@ fn check_counts(path: &Path, h: &Header, remaining: usize) -> Result<()> {
 fn check_unique_names(path: &Path, header_text: &[u8], h: &Header) -> Result<()> {
     let text = String::from_utf8_lossy(header_text);
     let count = |kw: &str| {
-        text.lines()
-            .filter(|l| l.trim_start().starts_with(kw))
-            .count()
+        let first = |l: &str| l.split_whitespace().next() == Some(kw);
+        text.lines().filter(|l| first(l)).count()
     };
     let props: usize = h.elements.values().map(|e| e.properties.len()).sum();
-    if count("element ") != h.elements.len() || count("property ") != props {
+    if count("element") != h.elements.len() || count("property") != props {
         return Err(Error::input(
             path,
             "declares the same element or property name twice",
