@@ -496,7 +496,7 @@ pub fn write_patch_plys(dir: &Path, prefix: &str, mesh: &InterfaceMesh) -> Resul
     let values = patch_values(mesh)?;
     let groups = mesh.patch_triangles();
     let mut local = LocalIds::new(mesh.vertex_count());
-    let mut write = |(p, tris): (usize, &Vec<u32>)| {
+    let write = |(p, tris): (usize, &Vec<u32>)| {
         let path = dir.join(patch_file_name(mesh, prefix, p as u32));
         write_patch(&path, mesh, p as u32, &values, tris, &mut local).map(|()| path)
     };
