@@ -120,7 +120,7 @@ pub fn heart(params: &PhantomParams) -> Result<LabelVolume> {
     let dims = Dims::new(n, n, n)?;
     let origin = params.spacing.map(|s| -0.5 * (n as f64 - 1.0) * s);
     let geometry = Geometry::new(params.spacing, origin, Geometry::IDENTITY_DIRECTION)?;
-    let mut ids = rasterize(&Heart::new(n), dims);
+    let mut ids = despeckle(&rasterize(&Heart::new(n), dims), dims);
     if params.noise > 0.0 {
         ids = add_noise(&ids, dims, params.noise, params.seed);
     }
@@ -218,6 +218,14 @@ impl Ellipsoid {
         Ellipsoid::new(self.centre, self.inv_radii.map(|ir| 1.0 / ir + t))
     }
 
+    fn bounds(&self) -> (V3, V3) {
+        let r = self.inv_radii.map(|ir| 1.0 / ir);
+        (
+            [0, 1, 2].map(|k| self.centre[k] - r[k]),
+            [0, 1, 2].map(|k| self.centre[k] + r[k]),
+        )
+    }
+
     #[inline]
     fn contains(&self, q: V3) -> bool {
         let d = sub(q, self.centre);
@@ -274,6 +282,27 @@ impl Piece {
         }
     }
 
+    /// Bounding box of the centre line.
+    fn bounds(&self) -> (V3, V3) {
+        match *self {
+            Piece::Segment { a, dir, .. } => {
+                let b = [0, 1, 2].map(|k| a[k] + dir[k]);
+                (
+                    [0, 1, 2].map(|k| a[k].min(b[k])),
+                    [0, 1, 2].map(|k| a[k].max(b[k])),
+                )
+            }
+            Piece::HalfCircle {
+                centre, r, e1, e2, ..
+            } => {
+                // centre + r·(cos θ·e1 + sin θ·e2), θ in [0, π].
+                let lo = [0, 1, 2].map(|k| centre[k] - r * e1[k].abs() + r * e2[k].min(0.0));
+                let hi = [0, 1, 2].map(|k| centre[k] + r * e1[k].abs() + r * e2[k].max(0.0));
+                (lo, hi)
+            }
+        }
+    }
+
     /// Distance from `q` to the piece (infinite past an open start or below the
     /// half circle's diameter, where the neighbouring pieces take over).
     #[inline]
@@ -290,7 +319,7 @@ impl Piece {
                 if open_start && t < 0.0 {
                     return f64::INFINITY;
                 }
-                let t = t.min(1.0).max(0.0);
+                let t = t.clamp(0.0, 1.0);
                 norm(sub(v, dir.map(|d| d * t)))
             }
             Piece::HalfCircle {
@@ -316,6 +345,8 @@ impl Piece {
 /// lumen of label `lumen` inside.
 struct Tube {
     pieces: Vec<Piece>,
+    /// Bounding box of each piece, grown by `r_out` and a margin.
+    boxes: Vec<(V3, V3)>,
     r_in: f64,
     r_out: f64,
     wall: LabelId,
@@ -323,13 +354,43 @@ struct Tube {
 }
 
 impl Tube {
-    /// Distance to the centre line.
+    /// A tube of outer radius `r_out` with a wall `thickness` thick;
+    /// [`Tube::distance`] is exact up to `r_out + margin`.
+    fn new(
+        pieces: Vec<Piece>,
+        r_out: f64,
+        thickness: f64,
+        [wall, lumen]: [LabelId; 2],
+        margin: f64,
+    ) -> Self {
+        let grow = r_out + margin;
+        let boxes = pieces
+            .iter()
+            .map(|p| {
+                let (lo, hi) = p.bounds();
+                (lo.map(|c| c - grow), hi.map(|c| c + grow))
+            })
+            .collect();
+        Tube {
+            pieces,
+            boxes,
+            r_in: r_out - thickness,
+            r_out,
+            wall,
+            lumen,
+        }
+    }
+
+    /// Distance to the centre line; infinite far from it.
     #[inline]
     fn distance(&self, q: V3) -> f64 {
-        self.pieces
-            .iter()
-            .map(|p| p.distance(q))
-            .fold(f64::INFINITY, f64::min)
+        let mut best = f64::INFINITY;
+        for (piece, (lo, hi)) in self.pieces.iter().zip(&self.boxes) {
+            if (0..3).all(|k| lo[k] <= q[k] && q[k] <= hi[k]) {
+                best = best.min(piece.distance(q));
+            }
+        }
+        best
     }
 
     /// Label of a point at distance `d` from the centre line (inside the tube).
@@ -385,6 +446,11 @@ struct Heart {
     pa: Tube,
     /// Widest gap between the arteries that is filled with wall.
     bridge: f64,
+    /// Heart-frame boxes covering every shape but the descending aorta.
+    boxes: Vec<(V3, V3)>,
+    /// The descending aorta in volume coordinates: x, y of its vertical axis,
+    /// height of its top, radius with margin.
+    descending: [f64; 4],
 }
 
 impl Heart {
@@ -399,7 +465,7 @@ impl Heart {
         let plate_top = base + thick(0.06);
         let lv_cav = Ellipsoid::new([0.12, 0.06, 0.0], [0.23, 0.23, 0.46]);
         let rv_cav = Ellipsoid::new([-0.08, -0.12, 0.0], [0.38, 0.3, 0.42]);
-        let (la_c, ra_c) = ([0.15, 0.24, 0.16], [-0.27, 0.1, 0.16]);
+        let (la_c, ra_c) = ([0.15, 0.18, 0.18], [-0.27, 0.1, 0.16]);
         let valve = |x: f64, y: f64, r: f64, top: f64, label| Valve {
             x,
             y,
@@ -418,9 +484,12 @@ impl Heart {
             valve(-0.2, -0.25, pa_lumen, plate_top, RV),
         ];
         let septum_n = unit([1.0, 0.3, 0.0]);
-        Heart {
-            rot: rotation(),
-            shift: [0.0, -0.05, -0.1],
+        let rot = rotation();
+        let down = rot.map(|row| -row[2]);
+        let (aorta, aorta_top) = aorta(plate_top, down, ao_r, thin, voxel);
+        let mut heart = Heart {
+            rot,
+            shift: [0.0, -0.08, -0.15],
             scale,
             base,
             plate_top,
@@ -429,13 +498,82 @@ impl Heart {
             rv_cav,
             rv_myo: rv_cav.grown(thick(0.045)),
             valves,
-            la: Ellipsoid::new(la_c, [0.24, 0.17, 0.2]),
+            la: Ellipsoid::new(la_c, [0.24, 0.18, 0.24]),
             ra: Ellipsoid::new(ra_c, [0.22, 0.18, 0.2]),
             septum: (septum_n, [-0.07, 0.16, 0.0], 0.5 * thick(0.05)),
-            aorta: aorta(plate_top, ao_r, thin),
-            pa: pulmonary_artery(plate_top, pa_r, thin),
+            aorta,
+            pa: pulmonary_artery(plate_top, pa_r, thin, voxel),
             bridge: 0.5 * voxel,
+            boxes: Vec::new(),
+            descending: [0.0; 4],
+        };
+        heart.set_culling(aorta_top, voxel);
+        heart
+    }
+
+    /// Fills `boxes` and `descending`, which let [`Heart::row_spans`] skip
+    /// the background.
+    fn set_culling(&mut self, aorta_top: V3, voxel: f64) {
+        let below_plate = |(lo, mut hi): (V3, V3)| {
+            hi[2] = hi[2].min(self.plate_top);
+            (lo, hi)
+        };
+        let mut boxes = vec![
+            below_plate(self.lv_myo.bounds()),
+            below_plate(self.rv_myo.bounds()),
+            self.la.bounds(),
+            self.ra.bounds(),
+        ];
+        for v in &self.valves[..2] {
+            let r = v.r2.sqrt();
+            boxes.push(([v.x - r, v.y - r, self.base], [v.x + r, v.y + r, v.top]));
         }
+        boxes.extend(self.pa.boxes.iter().copied());
+        // Every piece of the aorta but the last, the descending one.
+        boxes.extend(
+            self.aorta.boxes[..self.aorta.boxes.len() - 1]
+                .iter()
+                .copied(),
+        );
+        self.boxes = boxes;
+        let top = self.to_volume(aorta_top);
+        let radius = (self.aorta.r_out + voxel) * self.scale;
+        self.descending = [top[0], top[1], top[2], radius];
+    }
+
+    /// Normalized volume position of a heart-frame position.
+    fn to_volume(&self, q: V3) -> V3 {
+        [0, 1, 2].map(|k| {
+            self.shift[k] + self.scale * (0..3).map(|a| q[a] * self.rot[a][k]).sum::<f64>()
+        })
+    }
+
+    /// Intervals of volume x, on the row at volume `(y, z)`, outside of which
+    /// everything is background: the rows's passages through the boxes of the
+    /// shapes and through the descending aorta, sorted and merged.
+    fn row_spans(&self, y: f64, z: f64, spans: &mut Vec<(f64, f64)>) {
+        spans.clear();
+        // Heart frame along the row: q(x) = q0 + x · dq.
+        let q0 = self.to_heart([0.0, y, z]);
+        let dq = self.rot.map(|axis| axis[0] / self.scale);
+        spans.extend(self.boxes.iter().filter_map(|b| line_in_box(q0, dq, b)));
+        let [ax, ay, top, r] = self.descending;
+        let dy = y - ay;
+        if z <= top && dy.abs() < r {
+            let half = (r * r - dy * dy).sqrt();
+            spans.push((ax - half, ax + half));
+        }
+        spans.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        let mut merged = 0;
+        for i in 0..spans.len() {
+            if merged > 0 && spans[i].0 <= spans[merged - 1].1 {
+                spans[merged - 1].1 = spans[merged - 1].1.max(spans[i].1);
+            } else {
+                spans[merged] = spans[i];
+                merged += 1;
+            }
+        }
+        spans.truncate(merged);
     }
 
     /// Heart-frame position of a normalized volume position.
@@ -535,45 +673,57 @@ fn rotation() -> [V3; 3] {
     [0, 1, 2].map(|r| [m[0][r], m[1][r], m[2][r]])
 }
 
-/// Ascending aorta from the aortic valve, arch toward the back, descending
-/// aorta out of the bottom of the volume.
-fn aorta(start: f64, r_out: f64, wall: f64) -> Tube {
-    let top_up = [0.0, 0.0, 0.42];
-    let top_down = [0.1, 0.48, 0.42];
-    Tube {
-        pieces: vec![
-            Piece::segment([0.0, 0.0, start], top_up, true),
-            Piece::arch(top_up, top_down),
-            Piece::segment(top_down, [0.1, 0.48, -4.0], false),
-        ],
-        r_in: r_out - wall,
-        r_out,
-        wall: AO,
-        lumen: LV,
+/// The parameters `t` where the line `q0 + t·dq` is inside the box.
+fn line_in_box(q0: V3, dq: V3, (lo, hi): &(V3, V3)) -> Option<(f64, f64)> {
+    let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
+    for k in 0..3 {
+        let (a, b) = (lo[k] - q0[k], hi[k] - q0[k]);
+        if dq[k].abs() < 1e-12 {
+            if a > 0.0 || b < 0.0 {
+                return None;
+            }
+        } else {
+            t0 = t0.max((a / dq[k]).min(b / dq[k]));
+            t1 = t1.min((a / dq[k]).max(b / dq[k]));
+        }
     }
+    (t0 <= t1).then_some((t0, t1))
+}
+
+/// Ascending aorta from the aortic valve, arch toward the back, descending
+/// aorta straight down (`down`: the volume's −z in the heart frame) out of the
+/// volume.
+fn aorta(start: f64, down: V3, r_out: f64, thickness: f64, margin: f64) -> (Tube, V3) {
+    let top_up = [0.0, 0.0, 0.42];
+    let top_down = [0.3, 0.48, 0.42];
+    let bottom = [0, 1, 2].map(|k| top_down[k] + 4.0 * down[k]);
+    let pieces = vec![
+        Piece::segment([0.0, 0.0, start], top_up, true),
+        Piece::arch(top_up, top_down),
+        Piece::segment(top_down, bottom, false),
+    ];
+    (
+        Tube::new(pieces, r_out, thickness, [AO, LV], margin),
+        top_down,
+    )
 }
 
 /// Pulmonary trunk from the pulmonary valve, in front of the ascending aorta
 /// to its left, then the left branch over the LA and the right branch under
 /// the arch, behind the ascending aorta.
-fn pulmonary_artery(start: f64, r_out: f64, wall: f64) -> Tube {
+fn pulmonary_artery(start: f64, r_out: f64, thickness: f64, margin: f64) -> Tube {
     let root = [-0.2, -0.25, start];
     let rise = [-0.2, -0.25, 0.22];
     let front = [0.18, -0.15, 0.4];
-    let fork = [0.17, 0.16, 0.42];
-    Tube {
-        pieces: vec![
-            Piece::segment(root, rise, true),
-            Piece::segment(rise, front, false),
-            Piece::segment(front, fork, false),
-            Piece::segment(fork, [0.4, 0.3, 0.36], false),
-            Piece::segment(fork, [-0.45, 0.22, 0.38], false),
-        ],
-        r_in: r_out - wall,
-        r_out,
-        wall: PA,
-        lumen: RV,
-    }
+    let fork = [0.17, 0.16, 0.38];
+    let pieces = vec![
+        Piece::segment(root, rise, true),
+        Piece::segment(rise, front, false),
+        Piece::segment(front, fork, false),
+        Piece::segment(fork, [0.4, 0.3, 0.36], false),
+        Piece::segment(fork, [-0.45, 0.215, 0.3], false),
+    ];
+    Tube::new(pieces, r_out, thickness, [PA, RV], margin)
 }
 
 /// Clean labels of every voxel, z slices in parallel.
@@ -581,17 +731,84 @@ fn rasterize(heart: &Heart, dims: Dims) -> Vec<LabelId> {
     let n = dims.nx;
     let step = 2.0 / n as f64;
     let coord = |i: usize| (i as f64 + 0.5) * step - 1.0;
+    // Voxels whose centre may lie in [lo, hi], one spare voxel on each side.
+    let voxels = |(lo, hi): (f64, f64)| {
+        let first = ((lo + 1.0) / step - 1.5).max(0.0) as usize;
+        let end = ((hi + 1.0) / step + 1.5).clamp(0.0, n as f64) as usize;
+        first..end.max(first)
+    };
     let mut ids = vec![BG; dims.len()];
     ids.par_chunks_mut(n * n)
         .enumerate()
         .for_each(|(z, slice)| {
+            let mut spans = Vec::with_capacity(heart.boxes.len() + 1);
             for (y, row) in slice.chunks_mut(n).enumerate() {
-                for (x, id) in row.iter_mut().enumerate() {
-                    *id = heart.label(heart.to_heart([coord(x), coord(y), coord(z)]));
+                let (py, pz) = (coord(y), coord(z));
+                heart.row_spans(py, pz, &mut spans);
+                for &span in &spans {
+                    for x in voxels(span) {
+                        row[x] = heart.label(heart.to_heart([coord(x), py, pz]));
+                    }
                 }
             }
         });
     ids
+}
+
+/// Gives every voxel without a 6-neighbour of its own label the most common
+/// label of its 6-neighbours (myocardium on ties, then the smaller label):
+/// rasterizing thin shapes leaves a few such specks.
+fn despeckle(ids: &[LabelId], dims: Dims) -> Vec<LabelId> {
+    let mut out = ids.to_vec();
+    let nx = dims.nx;
+    out.par_chunks_mut(nx * dims.ny)
+        .enumerate()
+        .for_each(|(z, slice)| {
+            for (y, row) in slice.chunks_mut(nx).enumerate() {
+                let start = dims.index(0, y, z);
+                for (x, out) in row.iter_mut().enumerate() {
+                    let i = start + x;
+                    let own = ids[i];
+                    // Most voxels share their label with a neighbour along x.
+                    if (x > 0 && ids[i - 1] == own) || (x + 1 < nx && ids[i + 1] == own) {
+                        continue;
+                    }
+                    let mut counts = [0u8; LABELS.len()];
+                    for_face_neighbours(dims, i, |k| counts[ids[k] as usize] += 1);
+                    if counts[own as usize] == 0 {
+                        *out = majority(&counts);
+                    }
+                }
+            }
+        });
+    out
+}
+
+/// The label with the highest count; myocardium first on ties, then the smaller.
+fn majority(counts: &[u8; LABELS.len()]) -> LabelId {
+    let mut best = MYO;
+    for (l, &c) in counts.iter().enumerate() {
+        if c > counts[best as usize] {
+            best = l as LabelId;
+        }
+    }
+    best
+}
+
+/// Calls `f` with the index of every 6-neighbour of voxel `i` inside the volume.
+#[inline]
+fn for_face_neighbours(dims: Dims, i: usize, mut f: impl FnMut(usize)) {
+    let c = dims.coords(i);
+    let n = dims.to_array();
+    let s = dims.strides();
+    for a in 0..3 {
+        if c[a] > 0 {
+            f(i - s[a]);
+        }
+        if c[a] + 1 < n[a] {
+            f(i + s[a]);
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------
@@ -630,12 +847,9 @@ fn add_noise(clean: &[LabelId], dims: Dims, p: f64, seed: u64) -> Vec<LabelId> {
 /// Whether voxel `i` has a 6-neighbour of another label.
 #[inline]
 fn on_interface(ids: &[LabelId], dims: Dims, i: usize) -> bool {
-    let [x, y, z] = dims.coords(i);
-    let s = dims.strides();
-    let own = ids[i];
-    let c = [x, y, z];
-    let n = dims.to_array();
-    (0..3).any(|a| (c[a] > 0 && ids[i - s[a]] != own) || (c[a] + 1 < n[a] && ids[i + s[a]] != own))
+    let mut other = false;
+    for_face_neighbours(dims, i, |k| other |= ids[k] != ids[i]);
+    other
 }
 
 /// The label of a uniformly chosen 26-neighbour of `i` that differs from it.
