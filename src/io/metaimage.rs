@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 use crate::io::raw::{
-    byte_count, decode_at, decode_text, image_shape, in_file, truncated, voxel_count,
+    byte_count, decode_at, decode_owned, decode_text, image_shape, in_file, truncated, voxel_count,
 };
 use crate::io::{DataType, Image, Samples, gz, read_file};
 use crate::volume::Geometry;
@@ -304,7 +304,7 @@ fn decode(path: &Path, data: &[u8], spec: &DataSpec) -> Result<Samples> {
             ));
         }
         let raw = gz::inflate_any(path, stream, needed as u64)?;
-        return decode_at(path, &raw, 0, n, spec.dtype, spec.little_endian);
+        return decode_owned(path, raw, 0, n, spec.dtype, spec.little_endian);
     }
     let offset = if spec.header_size == -1 {
         data.len()

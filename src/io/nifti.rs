@@ -13,7 +13,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-use crate::io::raw::{byte_count, decode_at, image_shape, voxel_count};
+use crate::io::raw::{byte_count, decode_owned, image_shape, voxel_count};
 use crate::io::{DataType, Image, Samples, atomic_write, gz, read_file};
 use crate::volume::{Geometry, LabelVolume};
 
@@ -120,9 +120,9 @@ fn read_voxels(
     } else {
         file
     };
-    decode_at(
+    decode_owned(
         path,
-        &data,
+        data,
         offset,
         voxel_count(path, dims)?,
         dtype,

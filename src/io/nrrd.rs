@@ -18,7 +18,7 @@ use glam::DVec3;
 use crate::error::{Error, Result};
 use crate::io::nifti::{encode_labels, gzip, smallest_label_type};
 use crate::io::raw::{
-    byte_count, decode_at, decode_text, image_shape, in_file, truncated, voxel_count,
+    byte_count, decode_at, decode_owned, decode_text, image_shape, in_file, truncated, voxel_count,
 };
 use crate::io::{DataType, Image, Samples, atomic_write, gz, read_file};
 use crate::volume::{Geometry, LabelVolume};
@@ -609,7 +609,7 @@ fn decode_payload(path: &Path, data: &[u8], layout: &Layout) -> Result<Samples> 
                 ));
             }
             let raw = gz::gunzip(path, data, total)?;
-            decode_at(path, &raw, skip, n, layout.dtype, layout.little_endian)
+            decode_owned(path, raw, skip, n, layout.dtype, layout.little_endian)
         }
         Encoding::Text => decode_text(path, data.get(skip..).unwrap_or_default(), n, layout.dtype),
     }

@@ -144,6 +144,28 @@ pub(crate) fn decode_at(
     ))
 }
 
+/// Like [`decode_at`] for data the caller owns: uint8 samples reuse the buffer
+/// instead of copying it.
+pub(crate) fn decode_owned(
+    path: &Path,
+    mut data: Vec<u8>,
+    offset: usize,
+    n: usize,
+    dtype: DataType,
+    little_endian: bool,
+) -> Result<Samples> {
+    if dtype != DataType::U8 {
+        return decode_at(path, &data, offset, n, dtype, little_endian);
+    }
+    let available = data.len().saturating_sub(offset);
+    if available < n {
+        return Err(truncated(path, n as u64, offset as u64, available as u64));
+    }
+    data.truncate(offset + n);
+    data.drain(..offset);
+    Ok(Samples::U8(data))
+}
+
 /// The error for voxel data shorter than the header says.
 pub(crate) fn truncated(path: &Path, needed: u64, offset: u64, found: u64) -> Error {
     Error::input(
