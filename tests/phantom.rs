@@ -366,6 +366,26 @@ fn shipped_config_names_the_phantom_labels() {
     assert_eq!(resolved.separations[0].by, id("myocardium"));
 }
 
+#[test]
+fn shipped_phantom_is_what_the_generator_makes() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/heart_phantom_48.nii.gz");
+    let read = septa::io::read_label_volume(&path, &Default::default()).unwrap();
+    let made = heart(&PhantomParams {
+        size: 48,
+        spacing: [2.0; 3],
+        noise: 0.005,
+        seed: 1,
+    })
+    .unwrap();
+    assert_eq!(read.dims(), made.dims());
+    assert_eq!(read.values(), made.values());
+    assert_eq!(read.ids(), made.ids());
+    let (g, h) = (read.geometry(), made.geometry());
+    assert_eq!(g.spacing(), h.spacing());
+    assert_eq!(g.origin(), h.origin());
+    assert_eq!(g.direction(), h.direction());
+}
+
 /// Numbers for the documentation: `cargo test --release --test phantom -- --ignored --nocapture`.
 #[test]
 #[ignore]
