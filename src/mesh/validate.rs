@@ -217,7 +217,11 @@ fn check_duplicates(mesh: &InterfaceMesh) -> Check {
         let p = mesh.positions[v as usize];
         (p.x.to_bits(), p.y.to_bits(), p.z.to_bits())
     };
-    order.par_sort_unstable_by_key(|&v| key(v));
+    if order.len() > 1 << 16 {
+        order.par_sort_unstable_by_key(|&v| key(v))
+    } else {
+        order.sort_unstable_by_key(|&v| key(v))
+    }
     for w in order.windows(2) {
         if mesh.positions[w[0] as usize] == mesh.positions[w[1] as usize] {
             c.fail(|| {
@@ -265,7 +269,7 @@ impl EdgeTable {
                 })
             })
             .collect();
-        entries.par_sort_unstable();
+        sort(&mut entries);
         EdgeTable { entries }
     }
 
@@ -335,7 +339,7 @@ fn check_fans(mesh: &InterfaceMesh) -> Check {
             })
         })
         .collect();
-    corners.par_sort_unstable();
+    sort(&mut corners);
     let bad: Vec<(u32, LabelId, usize)> = corners
         .par_chunk_by(|x, y| x.0 == y.0 && x.1 == y.1)
         .filter_map(|fan| {
@@ -390,24 +394,53 @@ impl Dsu {
 }
 
 /// Connected components of each label's surface, and their orientation.
+///
+/// Every triangle has two sides, one per label of its patch; side `2t` belongs
+/// to the lower label (as oriented), side `2t + 1` to the higher (reversed).
+/// Sides of one label that share an edge are in the same component.
 fn check_component_orientation(
     mesh: &InterfaceMesh,
     edges: &EdgeTable,
 ) -> (Check, Vec<LabelSurface>) {
     let mut check = Check::new("surfaces face away from their label");
-    let labels = mesh.labels_with_patches();
-    // surface triangles per label: (triangle, flipped)
-    let mut per_label: Vec<Vec<(u32, bool)>> =
-        vec![Vec::new(); labels.iter().map(|&l| l as usize + 1).max().unwrap_or(0)];
-    for (t, &p) in mesh.triangle_patch.iter().enumerate() {
-        let [a, b] = mesh.patches[p as usize].labels;
-        per_label[a as usize].push((t as u32, false));
-        per_label[b as usize].push((t as u32, true));
+    let side_label = |side: u32| -> LabelId {
+        let p = mesh.patches[mesh.triangle_patch[(side / 2) as usize] as usize];
+        p.labels[(side % 2) as usize]
+    };
+    let mut dsu = Dsu((0..2 * mesh.triangles.len() as u32).collect());
+    let mut sides: Vec<(LabelId, u32)> = Vec::with_capacity(8);
+    for g in edges.groups() {
+        sides.clear();
+        for &(_, _, t, _) in g {
+            sides.push((side_label(2 * t), 2 * t));
+            sides.push((side_label(2 * t + 1), 2 * t + 1));
+        }
+        sides.sort_unstable();
+        for run in sides.chunk_by(|a, b| a.0 == b.0) {
+            for w in run.windows(2) {
+                dsu.union(w[0].1, w[1].1);
+            }
+        }
     }
     let centre = bbox_centre(&mesh.positions);
+    let oriented = |side: u32| -> [DVec3; 3] {
+        let tri = mesh.triangles[(side / 2) as usize];
+        let tri = if side % 2 == 1 {
+            [tri[0], tri[2], tri[1]]
+        } else {
+            tri
+        };
+        tri.map(|v| mesh.positions[v as usize] - centre)
+    };
+    // per label: its sides, grouped by component root
+    let mut by_label: Vec<(LabelId, u32, u32)> = (0..2 * mesh.triangles.len() as u32)
+        .map(|sd| (side_label(sd), dsu.find(sd), sd))
+        .collect();
+    sort(&mut by_label);
+    let labels: Vec<&[(LabelId, u32, u32)]> = by_label.chunk_by(|a, b| a.0 == b.0).collect();
     let results: Vec<(LabelSurface, Vec<String>)> = labels
         .par_iter()
-        .map(|&l| label_orientation(mesh, edges, l, &per_label[l as usize], centre))
+        .map(|sides| label_orientation(mesh, sides, &oriented))
         .collect();
     let mut out = Vec::new();
     let mut unbounded = Vec::new();
@@ -426,6 +459,16 @@ fn check_component_orientation(
     (check, out)
 }
 
+/// Sorts small slices sequentially and large ones in parallel (the validator
+/// often runs inside an already parallel loop of tests).
+fn sort<T: Ord + Send>(v: &mut [T]) {
+    if v.len() > 1 << 16 {
+        v.par_sort_unstable()
+    } else {
+        v.sort_unstable()
+    }
+}
+
 fn bbox_centre(p: &[DVec3]) -> DVec3 {
     if p.is_empty() {
         return DVec3::ZERO;
@@ -437,89 +480,63 @@ fn bbox_centre(p: &[DVec3]) -> DVec3 {
     (lo + hi) * 0.5
 }
 
+/// Orientation of one label's surface components; `sides` are (label, root,
+/// side) sorted by root.
 fn label_orientation(
     mesh: &InterfaceMesh,
-    edges: &EdgeTable,
-    l: LabelId,
-    tris: &[(u32, bool)],
-    centre: DVec3,
+    sides: &[(LabelId, u32, u32)],
+    oriented: &(dyn Fn(u32) -> [DVec3; 3] + Sync),
 ) -> (LabelSurface, Vec<String>) {
+    let l = sides[0].0;
     let value = mesh.label_value(l);
-    // local index of each surface triangle
-    let mut local = hashbrown::HashMap::with_capacity(tris.len());
-    for (i, &(t, _)) in tris.iter().enumerate() {
-        local.insert(t, i as u32);
-    }
-    let mut dsu = Dsu((0..tris.len() as u32).collect());
-    for g in edges.groups() {
-        let mut first: Option<u32> = None;
-        for &(_, _, t, _) in g {
-            let [a, b] = mesh.patches[mesh.triangle_patch[t as usize] as usize].labels;
-            if a == l || b == l {
-                if let Some(&i) = local.get(&t) {
-                    match first {
-                        None => first = Some(i),
-                        Some(f) => dsu.union(f, i),
-                    }
-                }
-            }
+    // components: (root, volume, first side, bbox lo, bbox hi)
+    let mut list: Vec<(u32, f64, u32, DVec3, DVec3)> = Vec::new();
+    for comp in sides.chunk_by(|a, b| a.1 == b.1) {
+        let mut vol = 0.0;
+        let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
+        for &(_, _, sd) in comp {
+            let [a, b, c] = oriented(sd);
+            vol += a.dot(b.cross(c)) / 6.0;
+            lo = lo.min(a).min(b).min(c);
+            hi = hi.max(a).max(b).max(c);
         }
+        list.push((
+            comp[0].1,
+            vol,
+            comp.iter().map(|x| x.2).min().unwrap_or(0),
+            lo,
+            hi,
+        ));
     }
-    let oriented = |i: usize| -> [DVec3; 3] {
-        let (t, flip) = tris[i];
-        let tri = mesh.triangles[t as usize];
-        let tri = if flip { [tri[0], tri[2], tri[1]] } else { tri };
-        tri.map(|v| mesh.positions[v as usize] - centre)
-    };
-    // components: root -> (volume, first triangle, bbox)
-    let mut comps: hashbrown::HashMap<u32, (f64, usize, DVec3, DVec3)> = hashbrown::HashMap::new();
-    for i in 0..tris.len() {
-        let r = dsu.find(i as u32);
-        let [a, b, c] = oriented(i);
-        let e = comps
-            .entry(r)
-            .or_insert((0.0, i, DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)));
-        e.0 += a.dot(b.cross(c)) / 6.0;
-        e.2 = e.2.min(a).min(b).min(c);
-        e.3 = e.3.max(a).max(b).max(c);
-    }
-    let mut list: Vec<(u32, f64, usize, DVec3, DVec3)> = comps
-        .into_iter()
-        .map(|(r, (v, i, lo, hi))| (r, v, i, lo, hi))
-        .collect();
     list.sort_unstable_by_key(|c| c.2);
     let total: f64 = list.iter().map(|c| c.1).sum();
-    // nesting depth of each component among the others of this label
     let depths: Vec<usize> = if list.len() == 1 {
         vec![0]
     } else {
-        let roots: Vec<u32> = (0..tris.len()).map(|i| dsu.find(i as u32)).collect();
-        let tri_pts: Vec<[DVec3; 3]> = (0..tris.len()).map(oriented).collect();
-        nesting_depths(&list, &roots, &tri_pts)
+        let roots: Vec<u32> = sides.iter().map(|x| x.1).collect();
+        let tri_pts: Vec<[DVec3; 3]> = sides.iter().map(|x| oriented(x.2)).collect();
+        let firsts: Vec<usize> = list
+            .iter()
+            .map(|c| sides.iter().position(|x| x.2 == c.2).unwrap_or(0))
+            .collect();
+        nesting_depths(&list, &firsts, &roots, &tri_pts)
     };
     let mut bounded_ok = true;
     let mut unbounded_ok = true;
+    let mut wrong_bounded = 0;
     for (c, &d) in list.iter().zip(&depths) {
         let positive = c.1 > 0.0;
         let even = d % 2 == 0;
         bounded_ok &= positive == even;
         unbounded_ok &= positive != even;
+        wrong_bounded += usize::from(positive != even);
     }
     let mut errors = Vec::new();
     let unbounded = !bounded_ok && unbounded_ok;
     if !bounded_ok && !unbounded_ok {
         errors.push(format!(
             "label {value}: {} of {} surface components face the wrong way",
-            list.iter()
-                .zip(&depths)
-                .filter(|(c, d)| (c.1 > 0.0) != (*d % 2 == 0))
-                .count()
-                .min(
-                    list.iter()
-                        .zip(&depths)
-                        .filter(|(c, d)| (c.1 > 0.0) == (*d % 2 == 0))
-                        .count()
-                ),
+            wrong_bounded.min(list.len() - wrong_bounded),
             list.len()
         ));
     }
@@ -527,7 +544,7 @@ fn label_orientation(
         LabelSurface {
             label: l,
             value,
-            triangles: tris.len(),
+            triangles: sides.len(),
             components: list.len(),
             volume_mm3: total,
             unbounded,
@@ -539,7 +556,8 @@ fn label_orientation(
 /// For each component, how many other components of the same label contain it
 /// (ray parity along +x from a generic point of its first triangle).
 fn nesting_depths(
-    list: &[(u32, f64, usize, DVec3, DVec3)],
+    list: &[(u32, f64, u32, DVec3, DVec3)],
+    firsts: &[usize],
     roots: &[u32],
     tris: &[[DVec3; 3]],
 ) -> Vec<usize> {
@@ -573,8 +591,9 @@ fn nesting_depths(
         }
     }
     list.iter()
-        .map(|c| {
-            let t = tris[c.2];
+        .zip(firsts)
+        .map(|(c, &first)| {
+            let t = tris[first];
             // a generic point next to the triangle: irrational-ish barycentric
             // weights, nudged off its plane so that it is off any lattice plane
             let normal = (t[1] - t[0]).cross(t[2] - t[0]);
@@ -648,7 +667,7 @@ fn check_fidelity(mesh: &InterfaceMesh, rv: &RefinedVolume, tol: f64) -> Check {
             vertex_labels.push((v, b));
         }
     }
-    vertex_labels.par_sort_unstable();
+    sort(&mut vertex_labels);
     vertex_labels.dedup();
     let geometry = mesh.geometry;
     let bad: Vec<(u32, LabelId, f64)> = vertex_labels
@@ -673,37 +692,69 @@ fn check_fidelity(mesh: &InterfaceMesh, rv: &RefinedVolume, tol: f64) -> Check {
 /// Distance (voxels, index space) from `p` to the nearest (sub)voxel of label
 /// `l`, searched up to `max` (returns something larger when none is that close).
 fn distance_to_label(rv: &RefinedVolume, p: DVec3, l: LabelId, max: f64) -> f64 {
-    let r = max.ceil() as i32 + 1;
+    let s = rv.subdivision();
+    // fast path: a (sub)voxel of label l touches p (vertices on the boundary)
+    let q = (p + DVec3::splat(0.5)) * s as f64;
+    let range = |v: f64| {
+        let f = v.floor();
+        if (v - f).abs() < 1e-9 {
+            (f as i32 - 1, f as i32)
+        } else {
+            (f as i32, f as i32)
+        }
+    };
+    let (rx, ry, rz) = (range(q.x), range(q.y), range(q.z));
+    for z in rz.0..=rz.1 {
+        for y in ry.0..=ry.1 {
+            for x in rx.0..=rx.1 {
+                if rv.fine_label([x, y, z]) == l {
+                    return 0.0;
+                }
+            }
+        }
+    }
+    let r = max.ceil().max(1.0) as i32;
     // voxel (x,y,z) spans [x - 0.5, x + 0.5]
     let centre = [p.x.round() as i32, p.y.round() as i32, p.z.round() as i32];
-    let s = rv.subdivision();
     let box_dist = |lo: DVec3, hi: DVec3| -> f64 { (lo - p).max(p - hi).max(DVec3::ZERO).length() };
-    let mut best = f64::MAX;
+    // candidate cells nearest first, so that the search stops early
+    let mut cells: Vec<(f64, [i32; 3])> =
+        Vec::with_capacity(((2 * r + 1) * (2 * r + 1) * (2 * r + 1)) as usize);
     for z in centre[2] - r..=centre[2] + r {
         for y in centre[1] - r..=centre[1] + r {
             for x in centre[0] - r..=centre[0] + r {
-                let c = [x, y, z];
                 let lo = DVec3::new(x as f64 - 0.5, y as f64 - 0.5, z as f64 - 0.5);
                 let d = box_dist(lo, lo + DVec3::ONE);
-                if d >= best {
-                    continue;
+                if d <= max + 1e-9 {
+                    cells.push((d, [x, y, z]));
                 }
-                match rv.subvoxels(c).filter(|_| rv.is_refined(c)) {
-                    None => {
-                        if rv.coarse_label(c) == l {
-                            best = d;
-                        }
+            }
+        }
+    }
+    cells.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut best = f64::MAX;
+    for (d, c) in cells {
+        if d >= best {
+            break;
+        }
+        match rv.subvoxels(c).filter(|_| rv.is_refined(c)) {
+            None => {
+                if rv.coarse_label(c) == l {
+                    best = d;
+                }
+            }
+            Some(sub) => {
+                let h = 1.0 / s as f64;
+                let lo = DVec3::new(c[0] as f64 - 0.5, c[1] as f64 - 0.5, c[2] as f64 - 0.5);
+                for (i, &sl) in sub.iter().enumerate() {
+                    if sl != l {
+                        continue;
                     }
-                    Some(sub) => {
-                        let h = 1.0 / s as f64;
-                        for (i, &sl) in sub.iter().enumerate() {
-                            if sl != l {
-                                continue;
-                            }
-                            let q = [i as i32 % s, i as i32 / s % s, i as i32 / (s * s)];
-                            let flo = lo + DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64) * h;
-                            best = best.min(box_dist(flo, flo + DVec3::splat(h)));
-                        }
+                    let q = [i as i32 % s, i as i32 / s % s, i as i32 / (s * s)];
+                    let flo = lo + DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64) * h;
+                    best = best.min(box_dist(flo, flo + DVec3::splat(h)));
+                    if best == 0.0 {
+                        return 0.0;
                     }
                 }
             }

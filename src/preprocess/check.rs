@@ -165,7 +165,7 @@ mod tests {
                 .any(|v| matches!(v, Violation::CriticalVertex { at: [5, 5, 5], .. })),
             "{rep:?}"
         );
-        let fat = crate::preprocess::fatten(grid, &crit, 5);
+        let fat = crate::preprocess::fatten(grid, &crit, 5, &r.rank, &sep);
         assert!(check_guarantee(&fat, &sep, &crit).passed());
     }
 }

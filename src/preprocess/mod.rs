@@ -58,7 +58,13 @@ pub fn preprocess(volume: &LabelVolume, resolved: &Resolved) -> Preprocessed {
     let grid = PaddedLabels::new(volume, resolved.outside);
     let separation = SeparationTable::new(resolved, volume.label_count());
     let critical = critical_elements(&grid, resolved, &separation);
-    let refined = fatten(grid, &critical, subdivision_for(resolved));
+    let refined = fatten(
+        grid,
+        &critical,
+        subdivision_for(resolved),
+        &resolved.rank,
+        &separation,
+    );
     let guarantee = check_guarantee(&refined, &separation, &critical);
     Preprocessed {
         refined,
