@@ -21,6 +21,7 @@ pub mod error;
 pub mod extract;
 pub mod io;
 pub mod mesh;
+pub mod output;
 pub mod phantom;
 pub mod preprocess;
 pub mod star;

@@ -1,3 +1,7 @@
-fn main() {
-    println!("septa");
+//! The `septa` binary: see `septa --help`.
+
+mod cli;
+
+fn main() -> std::process::ExitCode {
+    cli::main()
 }

@@ -1,0 +1,298 @@
+//! `septa extract`: volume → interface patches on disk, with a summary.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::{Args, ValueEnum};
+
+use super::ui::{Ui, count, secs, table};
+use super::{VolumeArgs, load, show};
+use septa::Result;
+use septa::extract::{Decompose, ExtractOptions, Surface, extract, label_infos};
+use septa::mesh::stats::patch_stats;
+use septa::mesh::validate::{Options, validate};
+use septa::output::{Formats, check_outdir, patch_path, write_outdir};
+use septa::preprocess::preprocess;
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum DecomposeArg {
+    /// No extra points: each N-cycle is triangulated on its own points.
+    L,
+    /// One extra point (the average) per N-cycle with N > 3, and a fan around it.
+    H,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum SurfaceArg {
+    /// VESTA surface: dual of the voxel faces, one point per boundary face.
+    Vesta,
+    /// The voxel faces themselves (blocky; exact voxel volumes).
+    Faces,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum, PartialEq, Eq)]
+pub enum FormatArg {
+    Obj,
+    Vtp,
+    Stl,
+}
+
+#[derive(Args, Debug)]
+pub struct ExtractArgs {
+    #[command(flatten)]
+    pub input: VolumeArgs,
+    /// Output directory (interfaces.ply, patches/, junctions.ply, manifest.json).
+    #[arg(short, long, value_name = "OUTDIR")]
+    pub output: PathBuf,
+    /// Replace OUTDIR if it exists.
+    #[arg(long)]
+    pub force: bool,
+    /// How N-cycles are cut into triangles.
+    #[arg(long, value_enum, default_value = "l", ignore_case = true)]
+    pub decompose: DecomposeArg,
+    /// Which surface to extract.
+    #[arg(long, value_enum, default_value = "vesta")]
+    pub surface: SurfaceArg,
+    /// Extra formats besides PLY: obj (all patches, one group each), vtp (ParaView),
+    /// stl (one closed outward surface per label, for printing). Repeatable or comma-separated.
+    #[arg(long = "format", value_enum, value_delimiter = ',')]
+    pub formats: Vec<FormatArg>,
+    /// Also check the output for self-intersections (slower).
+    #[arg(long)]
+    pub intersections: bool,
+}
+
+pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
+    check_outdir(&args.output, Some(&args.input.volume), args.force)?;
+    let mut timings: Vec<(&str, Duration)> = Vec::new();
+
+    let stage = ui.stage("reading volume");
+    let loaded = load(&args.input, ui)?;
+    timings.push(("read", stage.done()));
+    let v = &loaded.volume;
+    let r = &loaded.resolved;
+
+    let stage = ui.stage("finding and fattening critical elements");
+    let pre = preprocess(v, r);
+    timings.push(("preprocess", stage.done()));
+    if !pre.guarantee.passed() {
+        ui.warn(format!(
+            "preprocessing left {} critical configurations; the patches will not all be manifold (first: {:?})",
+            pre.guarantee.violation_count,
+            pre.guarantee.first_violations.first()
+        ));
+    }
+
+    let opts = ExtractOptions {
+        surface: match args.surface {
+            SurfaceArg::Vesta => Surface::Vesta,
+            SurfaceArg::Faces => Surface::Faces,
+        },
+        decompose: match args.decompose {
+            DecomposeArg::L => Decompose::L,
+            DecomposeArg::H => Decompose::H,
+        },
+    };
+    let stage = ui.stage("extracting interface patches");
+    let mesh = extract(
+        &pre.refined,
+        label_infos(v, Some(&loaded.config)),
+        *v.geometry(),
+        &opts,
+    )?;
+    timings.push(("extract", stage.done()));
+
+    let stage = ui.stage("validating");
+    let report = validate(
+        &mesh,
+        &Options {
+            intersections: args.intersections,
+            fidelity: Some((&pre.refined, 0.5)),
+        },
+    );
+    timings.push(("validate", stage.done()));
+
+    let stage = ui.stage("writing");
+    let stats = patch_stats(&mesh);
+    let counts = v.voxel_counts();
+    let voxel_ml = v.geometry().voxel_volume_mm3() / 1000.0;
+    let (nv, ne, nf) = pre.critical.counts();
+    let manifest = serde_json::json!({
+        "septa": env!("CARGO_PKG_VERSION"),
+        "command": std::env::args().collect::<Vec<_>>(),
+        "input": {
+            "file": show(&args.input.volume),
+            "config": args.input.config.as_ref().map(|p| show(p)),
+            "dims": v.dims().to_array(),
+            "spacing_mm": v.geometry().spacing(),
+            "origin_mm": v.geometry().origin(),
+            "direction": v.geometry().direction(),
+            "affine_lps": v.geometry().affine(),
+            "orientation": v.geometry().orientation_code(),
+        },
+        "space": "LPS mm (x toward patient left, y posterior, z superior; as DICOM/ITK/3D Slicer)",
+        "orientation": "patch {label_a, label_b}, label_a < label_b: triangle normals point from label_a into label_b",
+        "parameters": {
+            "surface": format!("{:?}", opts.surface).to_lowercase(),
+            "decompose": format!("{:?}", opts.decompose),
+            "subdivision": pre.refined.subdivision(),
+            "outside": v.value(r.outside),
+            "priority": loaded.config.priority.iter().map(|p| p.to_string()).collect::<Vec<_>>(),
+            "separate": loaded.config.separate.iter().map(|s| serde_json::json!({
+                "labels": s.labels.iter().map(|l| l.to_string()).collect::<Vec<_>>(), "by": s.by.to_string()})).collect::<Vec<_>>(),
+        },
+        "labels": (0..v.label_count()).map(|i| serde_json::json!({
+            "value": v.value(i as u16), "name": mesh.label_name(i as u16),
+            "voxels": counts[i], "volume_ml": counts[i] as f64 * voxel_ml,
+        })).collect::<Vec<_>>(),
+        "preprocessing": {
+            "critical_vertices": nv, "critical_edges": ne, "constraint_faces": nf,
+            "refined_voxels": pre.refined.refined_count(),
+            "guarantee_passed": pre.guarantee.passed(),
+        },
+        "vertices": mesh.vertex_count(),
+        "triangles": mesh.triangle_count(),
+        "patches": mesh.patches.iter().enumerate().map(|(i, p)| serde_json::json!({
+            "patch": i,
+            "label_a": mesh.label_value(p.labels[0]), "label_b": mesh.label_value(p.labels[1]),
+            "name_a": mesh.label_name(p.labels[0]), "name_b": mesh.label_name(p.labels[1]),
+            "file": patch_path(&mesh, i).display().to_string(),
+            "stats": stats[i],
+        })).collect::<Vec<_>>(),
+        "junction_curves": mesh.junctions.iter().map(|c| serde_json::json!({
+            "labels": c.labels.iter().map(|&l| mesh.label_value(l)).collect::<Vec<_>>(),
+            "vertices": c.vertices.len(), "closed": c.closed,
+        })).collect::<Vec<_>>(),
+        "validation": {"passed": report.passed(), "checks": report.checks},
+        "timings_s": timings.iter().map(|(k, d)| ((*k).to_string(), serde_json::json!(d.as_secs_f64()))).collect::<serde_json::Map<_, _>>(),
+    });
+    let formats = Formats {
+        obj: args.formats.contains(&FormatArg::Obj),
+        vtp: args.formats.contains(&FormatArg::Vtp),
+        stl: args.formats.contains(&FormatArg::Stl),
+    };
+    let files = write_outdir(&args.output, &mesh, formats, manifest)?;
+    timings.push(("write", stage.done()));
+
+    summarize(
+        ui,
+        args,
+        &loaded,
+        &pre,
+        &mesh,
+        &report,
+        &stats,
+        &timings,
+        files.len(),
+    );
+    if report.passed() {
+        Ok(ExitCode::SUCCESS)
+    } else {
+        eprintln!(
+            "error: the output violates septa's invariants (see above and manifest.json); please report this with the input volume"
+        );
+        Ok(ExitCode::from(1))
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn summarize(
+    ui: &Ui,
+    args: &ExtractArgs,
+    loaded: &super::Loaded,
+    pre: &septa::preprocess::Preprocessed,
+    mesh: &septa::mesh::InterfaceMesh,
+    report: &septa::mesh::validate::Report,
+    stats: &[septa::mesh::stats::PatchStats],
+    timings: &[(&str, Duration)],
+    files: usize,
+) {
+    let v = &loaded.volume;
+    let d = v.dims();
+    let (nv, ne, nf) = pre.critical.counts();
+    let detail = |stage: &str| -> String {
+        match stage {
+            "read" => format!(
+                "{} × {} × {} voxels, {} labels",
+                d.nx,
+                d.ny,
+                d.nz,
+                v.label_count()
+            ),
+            "preprocess" => format!(
+                "{} critical vertices, {} edges, {} constraint faces; {} voxels refined ({}³){}",
+                count(nv as u64),
+                count(ne as u64),
+                count(nf as u64),
+                count(pre.refined.refined_count() as u64),
+                pre.refined.subdivision(),
+                if pre.guarantee.passed() {
+                    ""
+                } else {
+                    "; GUARANTEE FAILED"
+                }
+            ),
+            "extract" => format!(
+                "{} patches, {} triangles, {} vertices, {} junction curves",
+                mesh.patches.len(),
+                count(mesh.triangle_count() as u64),
+                count(mesh.vertex_count() as u64),
+                mesh.junctions.len()
+            ),
+            "validate" => {
+                if report.passed() {
+                    "all invariants hold".into()
+                } else {
+                    format!("{} VIOLATIONS", report.failures())
+                }
+            }
+            "write" => format!("{files} files"),
+            _ => String::new(),
+        }
+    };
+    ui.say(format!(
+        "septa extract {} -> {}",
+        show(&args.input.volume),
+        show(&args.output)
+    ));
+    let mut rows: Vec<Vec<String>> = timings
+        .iter()
+        .map(|(k, t)| vec![k.to_string(), secs(*t), detail(k)])
+        .collect();
+    let total: Duration = timings.iter().map(|t| t.1).sum();
+    rows.push(vec!["total".into(), secs(total), String::new()]);
+    ui.say(table(&["stage", "time", ""], &rows));
+    if !report.passed() {
+        ui.say(report.summary().trim_end());
+    }
+    if ui.verbose > 0 || mesh.patches.len() <= 12 {
+        let rows: Vec<Vec<String>> = mesh
+            .patches
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                vec![
+                    format!(
+                        "{} | {}",
+                        mesh.label_name(p.labels[0]),
+                        mesh.label_name(p.labels[1])
+                    ),
+                    count(stats[i].triangles as u64),
+                    format!("{:.1}", stats[i].area_mm2),
+                    stats[i].boundary_loops.to_string(),
+                    stats[i].euler_characteristic.to_string(),
+                ]
+            })
+            .collect();
+        ui.say(table(
+            &["patch", "triangles", "area (mm²)", "boundary loops", "χ"],
+            &rows,
+        ));
+    } else {
+        ui.say(format!(
+            "  {} patches (use -v for the table, or see manifest.json)",
+            mesh.patches.len()
+        ));
+    }
+}
