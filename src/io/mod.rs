@@ -130,7 +130,11 @@ impl Samples {
                         .chunks_exact(N)
                         .map(|c| {
                             let a: [u8; N] = c.try_into().expect("chunk size");
-                            if little_endian { <$t>::from_le_bytes(a) } else { <$t>::from_be_bytes(a) }
+                            if little_endian {
+                                <$t>::from_le_bytes(a)
+                            } else {
+                                <$t>::from_be_bytes(a)
+                            }
                         })
                         .collect(),
                 )
@@ -215,7 +219,8 @@ impl Image {
                 ),
             ));
         }
-        Dims::new(self.dims[0], self.dims[1], self.dims[2]).map_err(|e| Error::input(&self.path, e.to_string()))
+        Dims::new(self.dims[0], self.dims[1], self.dims[2])
+            .map_err(|e| Error::input(&self.path, e.to_string()))
     }
 
     /// Converts to a label volume. Floating-point samples must be integral
@@ -226,7 +231,11 @@ impl Image {
         if self.samples.len() != dims.len() {
             return Err(Error::input(
                 &self.path,
-                format!("holds {} samples for {} voxels", self.samples.len(), dims.len()),
+                format!(
+                    "holds {} samples for {} voxels",
+                    self.samples.len(),
+                    dims.len()
+                ),
             ));
         }
         let path = self.path;
@@ -236,15 +245,28 @@ impl Image {
             Samples::I8(v) => from_small(dims, &v, |x| (x as i16 + 128) as usize, 256, geometry)
                 .map(|lv| shift_values(lv, -128)),
             Samples::U16(v) => from_small(dims, &v, |x| x as usize, 65536, geometry),
-            Samples::I16(v) => from_small(dims, &v, |x| (x as i32 + 32768) as usize, 65536, geometry)
-                .map(|lv| shift_values(lv, -32768)),
-            Samples::U32(v) => LabelVolume::from_values(dims, &v.iter().map(|&x| x as i64).collect::<Vec<_>>(), geometry),
-            Samples::I32(v) => LabelVolume::from_values(dims, &v.iter().map(|&x| x as i64).collect::<Vec<_>>(), geometry),
+            Samples::I16(v) => {
+                from_small(dims, &v, |x| (x as i32 + 32768) as usize, 65536, geometry)
+                    .map(|lv| shift_values(lv, -32768))
+            }
+            Samples::U32(v) => LabelVolume::from_values(
+                dims,
+                &v.iter().map(|&x| x as i64).collect::<Vec<_>>(),
+                geometry,
+            ),
+            Samples::I32(v) => LabelVolume::from_values(
+                dims,
+                &v.iter().map(|&x| x as i64).collect::<Vec<_>>(),
+                geometry,
+            ),
             Samples::U64(v) => {
                 let mut out = Vec::with_capacity(v.len());
                 for (i, &x) in v.iter().enumerate() {
                     let Ok(x) = i64::try_from(x) else {
-                        return Err(Error::input(&path, format!("label value {x} at voxel {:?} is too large", dims.coords(i))));
+                        return Err(Error::input(
+                            &path,
+                            format!("label value {x} at voxel {:?} is too large", dims.coords(i)),
+                        ));
                     };
                     out.push(x);
                 }
@@ -298,7 +320,9 @@ fn from_small<T: Copy + Sync>(
     for (k, &p) in present.iter().enumerate() {
         if p {
             if values.len() >= MAX_LABELS {
-                return Err(Error::invalid(format!("more than {MAX_LABELS} distinct labels")));
+                return Err(Error::invalid(format!(
+                    "more than {MAX_LABELS} distinct labels"
+                )));
             }
             lut[k] = values.len() as LabelId;
             values.push(k as i64);
@@ -310,10 +334,16 @@ fn from_small<T: Copy + Sync>(
 
 fn shift_values(lv: LabelVolume, by: i64) -> LabelVolume {
     let values = lv.values().iter().map(|v| v + by).collect();
-    LabelVolume::from_ids(lv.dims(), lv.ids().to_vec(), values, *lv.geometry()).expect("shift keeps order")
+    LabelVolume::from_ids(lv.dims(), lv.ids().to_vec(), values, *lv.geometry())
+        .expect("shift keeps order")
 }
 
-fn float_labels(dims: Dims, v: impl Iterator<Item = f64>, path: &Path, geometry: Geometry) -> Result<LabelVolume> {
+fn float_labels(
+    dims: Dims,
+    v: impl Iterator<Item = f64>,
+    path: &Path,
+    geometry: Geometry,
+) -> Result<LabelVolume> {
     let mut out = Vec::with_capacity(dims.len());
     for (i, x) in v.enumerate() {
         if !x.is_finite() || x.fract() != 0.0 || x.abs() > 9.0e15 {
@@ -402,7 +432,10 @@ pub fn write_label_volume(path: &Path, volume: &LabelVolume) -> Result<()> {
     match VolumeFormat::from_path(path) {
         Some(VolumeFormat::Nifti) => nifti::write_labels(path, volume),
         Some(VolumeFormat::Nrrd) => nrrd::write_labels(path, volume),
-        _ => Err(Error::input(path, "can only write label volumes as .nii, .nii.gz or .nrrd")),
+        _ => Err(Error::input(
+            path,
+            "can only write label volumes as .nii, .nii.gz or .nrrd",
+        )),
     }
 }
 
@@ -412,7 +445,10 @@ pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<()> {
 }
 
 /// Like [`atomic_write`], with a closure that streams into a buffered writer.
-pub fn atomic_write_with(path: &Path, f: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>) -> Result<()> {
+pub fn atomic_write_with(
+    path: &Path,
+    f: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+) -> Result<()> {
     let file_name = path
         .file_name()
         .ok_or_else(|| Error::input(path, "is not a file path"))?
