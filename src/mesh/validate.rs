@@ -151,12 +151,12 @@ pub fn validate(mesh: &InterfaceMesh, opts: &Options) -> Report {
     report.checks.push(check_unused(mesh));
     report.checks.push(check_duplicates(mesh));
     report.checks.push(check_degenerate(mesh));
-    let edges = EdgeTable::new(mesh);
-    let (edge_check, orient_check) = edges.check_label_edges(mesh);
-    report.checks.push(edge_check);
-    report.checks.push(orient_check);
-    report.checks.push(check_fans(mesh));
-    let (orientation, labels) = check_component_orientation(mesh, &edges);
+    let stars = Stars::new(mesh);
+    let local = check_local(mesh, &stars);
+    let (orientation, labels) = check_component_orientation(mesh, &local.unions);
+    report.checks.push(local.open);
+    report.checks.push(local.orient);
+    report.checks.push(local.fans);
     report.checks.push(orientation);
     report.labels = labels;
     if opts.intersections {
@@ -165,7 +165,7 @@ pub fn validate(mesh: &InterfaceMesh, opts: &Options) -> Report {
             .push(super::intersect::check_self_intersections(mesh));
     }
     if let Some((rv, tol)) = opts.fidelity {
-        report.checks.push(check_fidelity(mesh, rv, tol));
+        report.checks.push(check_fidelity(mesh, &stars, rv, tol));
     }
     report
 }
@@ -212,24 +212,35 @@ fn check_unused(mesh: &InterfaceMesh) -> Check {
 
 fn check_duplicates(mesh: &InterfaceMesh) -> Check {
     let mut c = Check::new("no duplicate positions");
-    let mut order: Vec<u32> = (0..mesh.positions.len() as u32).collect();
-    let key = |v: u32| {
-        let p = mesh.positions[v as usize];
-        (p.x.to_bits(), p.y.to_bits(), p.z.to_bits())
+    // sort (hash of the exact position, vertex); equal positions have equal hashes
+    let hash = |p: DVec3| {
+        let mut h = p.x.to_bits().wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        h = (h ^ p.y.to_bits()).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        (h ^ p.z.to_bits()).wrapping_mul(0x94D0_49BB_1331_11EB)
     };
-    if order.len() > 1 << 16 {
-        order.par_sort_unstable_by_key(|&v| key(v))
+    let mut keys: Vec<(u64, u32)> = mesh
+        .positions
+        .par_iter()
+        .enumerate()
+        .map(|(v, &p)| (hash(p), v as u32))
+        .collect();
+    if keys.len() > 1 << 16 {
+        keys.par_sort_unstable();
     } else {
-        order.sort_unstable_by_key(|&v| key(v))
+        keys.sort_unstable();
     }
-    for w in order.windows(2) {
-        if mesh.positions[w[0] as usize] == mesh.positions[w[1] as usize] {
-            c.fail(|| {
-                format!(
-                    "vertices {} and {} at {:?}",
-                    w[0], w[1], mesh.positions[w[0] as usize]
-                )
-            });
+    for run in keys.chunk_by(|a, b| a.0 == b.0).filter(|r| r.len() > 1) {
+        for (i, a) in run.iter().enumerate() {
+            for b in &run[i + 1..] {
+                if mesh.positions[a.1 as usize] == mesh.positions[b.1 as usize] {
+                    c.fail(|| {
+                        format!(
+                            "vertices {} and {} at {:?}",
+                            a.1, b.1, mesh.positions[a.1 as usize]
+                        )
+                    });
+                }
+            }
         }
     }
     c
@@ -250,130 +261,197 @@ fn check_degenerate(mesh: &InterfaceMesh) -> Check {
     c
 }
 
-/// Every triangle edge, grouped by undirected edge.
-struct EdgeTable {
-    /// (min vertex, max vertex, triangle, forward) sorted by edge.
-    entries: Vec<(u32, u32, u32, bool)>,
+/// Triangles around each vertex, as corner ids `3 t + k` (compressed rows).
+struct Stars {
+    start: Vec<u32>,
+    corners: Vec<u32>,
 }
 
-impl EdgeTable {
+impl Stars {
     fn new(mesh: &InterfaceMesh) -> Self {
-        let mut entries: Vec<(u32, u32, u32, bool)> = mesh
-            .triangles
-            .par_iter()
-            .enumerate()
-            .flat_map_iter(|(t, tri)| {
-                (0..3).map(move |k| {
-                    let (u, v) = (tri[k], tri[(k + 1) % 3]);
-                    (u.min(v), u.max(v), t as u32, u < v)
-                })
-            })
-            .collect();
-        sort(&mut entries);
-        EdgeTable { entries }
-    }
-
-    /// Groups of entries sharing an undirected edge.
-    fn groups(&self) -> impl Iterator<Item = &[(u32, u32, u32, bool)]> {
-        self.entries.chunk_by(|a, b| a.0 == b.0 && a.1 == b.1)
-    }
-
-    /// Invariant 1 on edges: for each label at an edge, exactly two of its
-    /// surface triangles, with opposite directions.
-    fn check_label_edges(&self, mesh: &InterfaceMesh) -> (Check, Check) {
-        let mut open = Check::new("label surfaces closed");
-        let mut orient = Check::new("label surfaces oriented");
-        let mut labels: Vec<(LabelId, i8)> = Vec::with_capacity(16);
-        for g in self.groups() {
-            labels.clear();
-            for &(_, _, t, fwd) in g {
-                let [a, b] = mesh.patches[mesh.triangle_patch[t as usize] as usize].labels;
-                let d = if fwd { 1 } else { -1 };
-                labels.push((a, d));
-                labels.push((b, -d));
+        let n = mesh.positions.len();
+        let mut start = vec![0u32; n + 1];
+        for tri in &mesh.triangles {
+            for &v in tri {
+                start[v as usize + 1] += 1;
             }
-            labels.sort_unstable();
-            for run in labels.chunk_by(|x, y| x.0 == y.0) {
-                let l = run[0].0;
-                if run.len() != 2 {
-                    open.fail(|| {
-                        format!(
-                            "edge {}-{} has {} triangles of label {}",
-                            g[0].0,
-                            g[0].1,
-                            run.len(),
-                            mesh.label_value(l)
-                        )
-                    });
-                } else if run[0].1 == run[1].1 {
-                    orient.fail(|| {
-                        format!(
-                            "edge {}-{}: two triangles of label {} run the same way",
-                            g[0].0,
-                            g[0].1,
-                            mesh.label_value(l)
-                        )
-                    });
+        }
+        for v in 0..n {
+            start[v + 1] += start[v];
+        }
+        let mut fill = start.clone();
+        let mut corners = vec![0u32; 3 * mesh.triangles.len()];
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            for (k, &v) in tri.iter().enumerate() {
+                corners[fill[v as usize] as usize] = 3 * t as u32 + k as u32;
+                fill[v as usize] += 1;
+            }
+        }
+        Stars { start, corners }
+    }
+
+    fn of(&self, v: usize) -> &[u32] {
+        &self.corners[self.start[v] as usize..self.start[v + 1] as usize]
+    }
+}
+
+/// Failures found around vertices, and the side pairs to merge into components.
+#[derive(Default)]
+struct LocalFindings {
+    open: Check,
+    orient: Check,
+    fans: Check,
+    unions: Vec<(u32, u32)>,
+}
+
+impl LocalFindings {
+    fn new() -> Self {
+        LocalFindings {
+            open: Check::new("label surfaces closed"),
+            orient: Check::new("label surfaces oriented"),
+            fans: Check::new("label surfaces manifold at vertices"),
+            unions: Vec::new(),
+        }
+    }
+
+    fn merge(mut self, other: LocalFindings) -> LocalFindings {
+        for (a, b) in [
+            (&mut self.open, other.open),
+            (&mut self.orient, other.orient),
+            (&mut self.fans, other.fans),
+        ] {
+            a.failures += b.failures;
+            for e in b.examples {
+                if a.examples.len() < EXAMPLES {
+                    a.examples.push(e);
                 }
             }
         }
-        (open, orient)
+        self.unions.extend(other.unions);
+        self
     }
 }
 
-/// Invariant 1 at vertices: the triangles of each label around a vertex form a
-/// single fan.
-fn check_fans(mesh: &InterfaceMesh) -> Check {
-    let mut c = Check::new("label surfaces manifold at vertices");
-    // (vertex, label, prev, next) in the label's outward orientation
-    let mut corners: Vec<(u32, LabelId, u32, u32)> = mesh
-        .triangles
-        .par_iter()
-        .enumerate()
-        .flat_map_iter(|(t, tri)| {
-            let [a, b] = mesh.patches[mesh.triangle_patch[t] as usize].labels;
-            let tri = *tri;
-            (0..3).flat_map(move |k| {
-                let (v, next, prev) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
-                [(v, a, prev, next), (v, b, next, prev)]
-            })
-        })
-        .collect();
-    sort(&mut corners);
-    let bad: Vec<(u32, LabelId, usize)> = corners
-        .par_chunk_by(|x, y| x.0 == y.0 && x.1 == y.1)
-        .filter_map(|fan| {
-            let n = fan.len();
-            // walk next -> prev links; one cycle must cover every triangle
-            let mut seen = 1;
-            let mut cur = 0;
-            loop {
-                let next = fan[cur].3;
-                match fan.iter().position(|x| x.2 == next) {
-                    Some(0) => break,
-                    Some(i) if seen < n => {
-                        cur = i;
-                        seen += 1;
-                    }
-                    _ => return Some((fan[0].0, fan[0].1, seen)),
-                }
+/// Invariant 1 around every vertex: at each edge, each label has exactly two
+/// of its surface triangles, running opposite ways; around each vertex, each
+/// label's triangles form one fan. Also collects which triangle sides
+/// (side `2t` = lower label, `2t + 1` = higher) are connected across edges.
+fn check_local(mesh: &InterfaceMesh, stars: &Stars) -> LocalFindings {
+    let n = mesh.positions.len();
+    let chunk = (n / 256).max(1024);
+    (0..n.div_ceil(chunk))
+        .into_par_iter()
+        .map(|c| {
+            let mut f = LocalFindings::new();
+            let mut edges: Vec<(u32, u32, i8)> = Vec::new();
+            let mut sides: Vec<(LabelId, i8, u32)> = Vec::new();
+            let mut fan: Vec<(LabelId, u32, u32)> = Vec::new();
+            for u in c * chunk..((c + 1) * chunk).min(n) {
+                check_vertex(
+                    mesh, stars, u as u32, &mut f, &mut edges, &mut sides, &mut fan,
+                );
             }
-            (seen != n).then_some((fan[0].0, fan[0].1, seen))
+            f
         })
-        .collect();
-    for (v, l, _) in bad {
-        c.fail(|| {
-            format!(
-                "vertex {v} at {:?}: label {} has more than one fan",
-                mesh.positions[v as usize],
-                mesh.label_value(l)
-            )
-        });
-    }
-    c
+        .reduce(LocalFindings::new, LocalFindings::merge)
 }
 
-/// Union-find over triangles.
+fn check_vertex(
+    mesh: &InterfaceMesh,
+    stars: &Stars,
+    u: u32,
+    f: &mut LocalFindings,
+    edges: &mut Vec<(u32, u32, i8)>,
+    sides: &mut Vec<(LabelId, i8, u32)>,
+    fan: &mut Vec<(LabelId, u32, u32)>,
+) {
+    let labels_of = |t: u32| mesh.patches[mesh.triangle_patch[t as usize] as usize].labels;
+    edges.clear();
+    fan.clear();
+    for &corner in stars.of(u as usize) {
+        let (t, k) = (corner / 3, (corner % 3) as usize);
+        let tri = mesh.triangles[t as usize];
+        let (next, prev) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
+        // edges {u, w} with w > u are checked here, once
+        if next > u {
+            edges.push((next, t, 1));
+        }
+        if prev > u {
+            edges.push((prev, t, -1));
+        }
+        let [a, b] = labels_of(t);
+        fan.push((a, prev, next));
+        fan.push((b, next, prev));
+    }
+    edges.sort_unstable();
+    for g in edges.chunk_by(|x, y| x.0 == y.0) {
+        sides.clear();
+        for &(_, t, d) in g {
+            let [a, b] = labels_of(t);
+            sides.push((a, d, 2 * t));
+            sides.push((b, -d, 2 * t + 1));
+        }
+        sides.sort_unstable();
+        for run in sides.chunk_by(|x, y| x.0 == y.0) {
+            let l = run[0].0;
+            if run.len() != 2 {
+                f.open.fail(|| {
+                    format!(
+                        "edge {u}-{} has {} triangles of label {}",
+                        g[0].0,
+                        run.len(),
+                        mesh.label_value(l)
+                    )
+                });
+            } else if run[0].1 == run[1].1 {
+                f.orient.fail(|| {
+                    format!(
+                        "edge {u}-{}: two triangles of label {} run the same way",
+                        g[0].0,
+                        mesh.label_value(l)
+                    )
+                });
+            }
+            for w in run.windows(2) {
+                f.unions.push((w[0].2, w[1].2));
+            }
+        }
+    }
+    fan.sort_unstable();
+    for run in fan.chunk_by(|x, y| x.0 == y.0) {
+        if !single_fan(run) {
+            let l = run[0].0;
+            f.fans.fail(|| {
+                format!(
+                    "vertex {u} at {:?}: label {} has more than one fan",
+                    mesh.positions[u as usize],
+                    mesh.label_value(l)
+                )
+            });
+        }
+    }
+}
+
+/// Whether corners (label, prev, next) around a vertex link next → prev into
+/// one cycle through all of them.
+fn single_fan(run: &[(LabelId, u32, u32)]) -> bool {
+    let n = run.len();
+    let mut seen = 1;
+    let mut cur = 0;
+    loop {
+        let next = run[cur].2;
+        match run.iter().position(|x| x.1 == next) {
+            Some(0) => return seen == n,
+            Some(i) if seen < n => {
+                cur = i;
+                seen += 1;
+            }
+            _ => return false,
+        }
+    }
+}
+
+/// Union-find over triangle sides.
 struct Dsu(Vec<u32>);
 
 impl Dsu {
@@ -393,36 +471,30 @@ impl Dsu {
     }
 }
 
-/// Connected components of each label's surface, and their orientation.
-///
-/// Every triangle has two sides, one per label of its patch; side `2t` belongs
-/// to the lower label (as oriented), side `2t + 1` to the higher (reversed).
-/// Sides of one label that share an edge are in the same component.
+/// One connected component of a label's surface.
+struct Component {
+    label: LabelId,
+    volume: f64,
+    sides: usize,
+    lo: DVec3,
+    hi: DVec3,
+}
+
+/// Connected components of each label's surface and their orientation.
 fn check_component_orientation(
     mesh: &InterfaceMesh,
-    edges: &EdgeTable,
+    unions: &[(u32, u32)],
 ) -> (Check, Vec<LabelSurface>) {
     let mut check = Check::new("surfaces face away from their label");
-    let side_label = |side: u32| -> LabelId {
-        let p = mesh.patches[mesh.triangle_patch[(side / 2) as usize] as usize];
-        p.labels[(side % 2) as usize]
-    };
-    let mut dsu = Dsu((0..2 * mesh.triangles.len() as u32).collect());
-    let mut sides: Vec<(LabelId, u32)> = Vec::with_capacity(8);
-    for g in edges.groups() {
-        sides.clear();
-        for &(_, _, t, _) in g {
-            sides.push((side_label(2 * t), 2 * t));
-            sides.push((side_label(2 * t + 1), 2 * t + 1));
-        }
-        sides.sort_unstable();
-        for run in sides.chunk_by(|a, b| a.0 == b.0) {
-            for w in run.windows(2) {
-                dsu.union(w[0].1, w[1].1);
-            }
-        }
+    let n_sides = 2 * mesh.triangles.len();
+    let mut dsu = Dsu((0..n_sides as u32).collect());
+    for &(a, b) in unions {
+        dsu.union(a, b);
     }
     let centre = bbox_centre(&mesh.positions);
+    let side_label = |side: u32| {
+        mesh.patches[mesh.triangle_patch[(side / 2) as usize] as usize].labels[(side % 2) as usize]
+    };
     let oriented = |side: u32| -> [DVec3; 3] {
         let tri = mesh.triangles[(side / 2) as usize];
         let tri = if side % 2 == 1 {
@@ -432,15 +504,58 @@ fn check_component_orientation(
         };
         tri.map(|v| mesh.positions[v as usize] - centre)
     };
-    // per label: its sides, grouped by component root
-    let mut by_label: Vec<(LabelId, u32, u32)> = (0..2 * mesh.triangles.len() as u32)
-        .map(|sd| (side_label(sd), dsu.find(sd), sd))
-        .collect();
-    sort(&mut by_label);
-    let labels: Vec<&[(LabelId, u32, u32)]> = by_label.chunk_by(|a, b| a.0 == b.0).collect();
+    // component of every side, and per-component volume and box
+    let mut comp_of_root = vec![u32::MAX; n_sides];
+    let mut comp_of_side = vec![0u32; n_sides];
+    let mut comps: Vec<Component> = Vec::new();
+    for side in 0..n_sides as u32 {
+        let r = dsu.find(side) as usize;
+        if comp_of_root[r] == u32::MAX {
+            comp_of_root[r] = comps.len() as u32;
+            comps.push(Component {
+                label: side_label(side),
+                volume: 0.0,
+                sides: 0,
+                lo: DVec3::splat(f64::MAX),
+                hi: DVec3::splat(f64::MIN),
+            });
+        }
+        let ci = comp_of_root[r];
+        comp_of_side[side as usize] = ci;
+        let [a, b, c] = oriented(side);
+        let comp = &mut comps[ci as usize];
+        comp.volume += a.dot(b.cross(c)) / 6.0;
+        comp.sides += 1;
+        comp.lo = comp.lo.min(a).min(b).min(c);
+        comp.hi = comp.hi.max(a).max(b).max(c);
+    }
+    let labels = mesh.labels_with_patches();
+    let mut comps_of: Vec<Vec<u32>> =
+        vec![Vec::new(); labels.last().map_or(0, |&l| l as usize + 1)];
+    for (ci, comp) in comps.iter().enumerate() {
+        comps_of[comp.label as usize].push(ci as u32);
+    }
+    // sides are needed only for labels with several components (nesting)
+    let mut sides_of: Vec<Vec<u32>> = vec![Vec::new(); comps_of.len()];
+    for side in 0..n_sides as u32 {
+        let l = side_label(side) as usize;
+        if comps_of[l].len() > 1 {
+            sides_of[l].push(side);
+        }
+    }
     let results: Vec<(LabelSurface, Vec<String>)> = labels
         .par_iter()
-        .map(|sides| label_orientation(mesh, sides, &oriented))
+        .map(|&l| {
+            label_orientation(
+                mesh,
+                l,
+                &comps,
+                &comps_of[l as usize],
+                &comp_of_side,
+                &sides_of[l as usize],
+                &oriented,
+            )
+        })
         .collect();
     let mut out = Vec::new();
     let mut unbounded = Vec::new();
@@ -459,14 +574,59 @@ fn check_component_orientation(
     (check, out)
 }
 
-/// Sorts small slices sequentially and large ones in parallel (the validator
-/// often runs inside an already parallel loop of tests).
-fn sort<T: Ord + Send>(v: &mut [T]) {
-    if v.len() > 1 << 16 {
-        v.par_sort_unstable()
+/// Orientation of one label's surface components: outer boundaries enclose
+/// positive volume, cavities negative (or the reverse for the unbounded outside).
+fn label_orientation(
+    mesh: &InterfaceMesh,
+    l: LabelId,
+    comps: &[Component],
+    mine: &[u32],
+    comp_of_side: &[u32],
+    sides: &[u32],
+    oriented: &(dyn Fn(u32) -> [DVec3; 3] + Sync),
+) -> (LabelSurface, Vec<String>) {
+    let value = mesh.label_value(l);
+    let total: f64 = mine.iter().map(|&c| comps[c as usize].volume).sum();
+    let triangles = mine.iter().map(|&c| comps[c as usize].sides).sum();
+    let depths: Vec<usize> = if mine.len() == 1 {
+        vec![0]
     } else {
-        v.sort_unstable()
+        let list: Vec<(u32, DVec3, DVec3)> = mine
+            .iter()
+            .map(|&c| (c, comps[c as usize].lo, comps[c as usize].hi))
+            .collect();
+        nesting_depths(&list, sides, comp_of_side, oriented)
+    };
+    let mut bounded_ok = true;
+    let mut unbounded_ok = true;
+    let mut wrong = 0;
+    for (&c, &d) in mine.iter().zip(&depths) {
+        let positive = comps[c as usize].volume > 0.0;
+        let even = d % 2 == 0;
+        bounded_ok &= positive == even;
+        unbounded_ok &= positive != even;
+        wrong += usize::from(positive != even);
     }
+    let mut errors = Vec::new();
+    let unbounded = !bounded_ok && unbounded_ok;
+    if !bounded_ok && !unbounded_ok {
+        errors.push(format!(
+            "label {value}: {} of {} surface components face the wrong way",
+            wrong.min(mine.len() - wrong),
+            mine.len()
+        ));
+    }
+    (
+        LabelSurface {
+            label: l,
+            value,
+            triangles,
+            components: mine.len(),
+            volume_mm3: total,
+            unbounded,
+        },
+        errors,
+    )
 }
 
 fn bbox_centre(p: &[DVec3]) -> DVec3 {
@@ -480,93 +640,111 @@ fn bbox_centre(p: &[DVec3]) -> DVec3 {
     (lo + hi) * 0.5
 }
 
-/// Orientation of one label's surface components; `sides` are (label, root,
-/// side) sorted by root.
-fn label_orientation(
-    mesh: &InterfaceMesh,
-    sides: &[(LabelId, u32, u32)],
-    oriented: &(dyn Fn(u32) -> [DVec3; 3] + Sync),
-) -> (LabelSurface, Vec<String>) {
-    let l = sides[0].0;
-    let value = mesh.label_value(l);
-    // components: (root, volume, first side, bbox lo, bbox hi)
-    let mut list: Vec<(u32, f64, u32, DVec3, DVec3)> = Vec::new();
-    for comp in sides.chunk_by(|a, b| a.1 == b.1) {
-        let mut vol = 0.0;
-        let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
-        for &(_, _, sd) in comp {
-            let [a, b, c] = oriented(sd);
-            vol += a.dot(b.cross(c)) / 6.0;
-            lo = lo.min(a).min(b).min(c);
-            hi = hi.max(a).max(b).max(c);
-        }
-        list.push((
-            comp[0].1,
-            vol,
-            comp.iter().map(|x| x.2).min().unwrap_or(0),
-            lo,
-            hi,
-        ));
-    }
-    list.sort_unstable_by_key(|c| c.2);
-    let total: f64 = list.iter().map(|c| c.1).sum();
-    let depths: Vec<usize> = if list.len() == 1 {
-        vec![0]
-    } else {
-        let roots: Vec<u32> = sides.iter().map(|x| x.1).collect();
-        let tri_pts: Vec<[DVec3; 3]> = sides.iter().map(|x| oriented(x.2)).collect();
-        let firsts: Vec<usize> = list
-            .iter()
-            .map(|c| sides.iter().position(|x| x.2 == c.2).unwrap_or(0))
-            .collect();
-        nesting_depths(&list, &firsts, &roots, &tri_pts)
-    };
-    let mut bounded_ok = true;
-    let mut unbounded_ok = true;
-    let mut wrong_bounded = 0;
-    for (c, &d) in list.iter().zip(&depths) {
-        let positive = c.1 > 0.0;
-        let even = d % 2 == 0;
-        bounded_ok &= positive == even;
-        unbounded_ok &= positive != even;
-        wrong_bounded += usize::from(positive != even);
-    }
-    let mut errors = Vec::new();
-    let unbounded = !bounded_ok && unbounded_ok;
-    if !bounded_ok && !unbounded_ok {
-        errors.push(format!(
-            "label {value}: {} of {} surface components face the wrong way",
-            wrong_bounded.min(list.len() - wrong_bounded),
-            list.len()
-        ));
-    }
-    (
-        LabelSurface {
-            label: l,
-            value,
-            triangles: sides.len(),
-            components: list.len(),
-            volume_mm3: total,
-            unbounded,
-        },
-        errors,
-    )
-}
-
 /// For each component, how many other components of the same label contain it
-/// (ray parity along +x from a generic point of its first triangle).
+/// (ray parity along +x from a generic point next to its first triangle).
+///
+/// Only components whose bounding box holds another's can contain it; their
+/// triangles go into a 2-D bucket grid over (y, z), and only components inside
+/// some such box cast a ray.
 fn nesting_depths(
-    list: &[(u32, f64, u32, DVec3, DVec3)],
-    firsts: &[usize],
-    roots: &[u32],
-    tris: &[[DVec3; 3]],
+    list: &[(u32, DVec3, DVec3)],
+    sides: &[u32],
+    comp_of_side: &[u32],
+    oriented: &(dyn Fn(u32) -> [DVec3; 3] + Sync),
 ) -> Vec<usize> {
-    // 2-D bucket grid over (y, z) of all surface triangles
-    let (lo, hi) = list.iter().fold(
+    let k = list.len();
+    let inside = |c: usize, d: usize| {
+        c != d && list[d].1.cmple(list[c].1).all() && list[d].2.cmpge(list[c].2).all()
+    };
+    // which components may contain others, and which may be contained
+    let mut container = vec![false; k];
+    let mut contained = vec![false; k];
+    if k <= 20_000 {
+        for c in 0..k {
+            for d in 0..k {
+                if inside(c, d) {
+                    container[d] = true;
+                    contained[c] = true;
+                }
+            }
+        }
+    } else {
+        container.fill(true);
+        contained.fill(true);
+    }
+    if !contained.iter().any(|&b| b) {
+        return vec![0; k];
+    }
+    // list is sorted by component id
+    let local = |c: u32| {
+        list.binary_search_by_key(&c, |x| x.0)
+            .expect("component listed")
+    };
+    let mut firsts = vec![u32::MAX; k];
+    for &sd in sides {
+        let i = local(comp_of_side[sd as usize]);
+        if firsts[i] == u32::MAX {
+            firsts[i] = sd;
+        }
+    }
+    let is_candidate = |sd: u32| container[local(comp_of_side[sd as usize])];
+    let queries = contained.iter().filter(|&&b| b).count();
+    if queries <= 64 {
+        // few rays: one pass over the triangles of possible containers
+        let probes: Vec<(usize, DVec3)> = (0..k)
+            .filter(|&ci| contained[ci])
+            .map(|ci| (ci, probe_point(&oriented(firsts[ci]), 0)))
+            .collect();
+        let mut hits: Vec<(usize, u32)> = sides
+            .par_iter()
+            .filter(|&&sd| is_candidate(sd))
+            .flat_map_iter(|&sd| {
+                let t = oriented(sd);
+                let (lo, hi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+                let c = comp_of_side[sd as usize];
+                probes
+                    .iter()
+                    .filter(move |(ci, p)| {
+                        list[*ci].0 != c
+                            && p.y >= lo.y
+                            && p.y <= hi.y
+                            && p.z >= lo.z
+                            && p.z <= hi.z
+                            && p.x <= hi.x
+                    })
+                    .filter(move |(_, p)| ray_crosses(*p, &t) == Some(true))
+                    .map(move |(ci, _)| (*ci, c))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        hits.sort_unstable();
+        let mut depth = vec![0; k];
+        for run in hits.chunk_by(|a, b| a == b) {
+            if run.len() % 2 == 1 {
+                depth[run[0].0] += 1;
+            }
+        }
+        return depth;
+    }
+    let candidates: Vec<(u32, [DVec3; 3])> = sides
+        .iter()
+        .filter(|&&sd| is_candidate(sd))
+        .map(|&sd| (comp_of_side[sd as usize], oriented(sd)))
+        .collect();
+    let roots: Vec<u32> = candidates.iter().map(|x| x.0).collect();
+    let tris: Vec<[DVec3; 3]> = candidates.into_iter().map(|x| x.1).collect();
+    let candidates: Vec<u32> = (0..tris.len() as u32).collect();
+    let (lo, hi) = candidates.iter().fold(
         (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
-        |(lo, hi), c| (lo.min(c.3), hi.max(c.4)),
+        |(lo, hi), &i| {
+            let t = &tris[i as usize];
+            (
+                lo.min(t[0]).min(t[1]).min(t[2]),
+                hi.max(t[0]).max(t[1]).max(t[2]),
+            )
+        },
     );
-    let n = ((tris.len() as f64).sqrt().ceil() as usize).clamp(1, 1024);
+    let n = ((candidates.len() as f64).sqrt().ceil() as usize).clamp(1, 1024);
     let cell = DVec3::new(
         1.0,
         ((hi.y - lo.y) / n as f64).max(1e-9),
@@ -578,40 +756,55 @@ fn nesting_depths(
             (((z - lo.z) / cell.z) as isize).clamp(0, n as isize - 1) as usize,
         )
     };
-    let mut grid: Vec<Vec<u32>> = vec![Vec::new(); n * n];
-    for (i, t) in tris.iter().enumerate() {
-        let tlo = t[0].min(t[1]).min(t[2]);
-        let thi = t[0].max(t[1]).max(t[2]);
-        let (y0, z0) = bucket(tlo.y, tlo.z);
-        let (y1, z1) = bucket(thi.y, thi.z);
+    let cells_of = |i: u32| {
+        let t = &tris[i as usize];
+        let (tlo, thi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+        (bucket(tlo.y, tlo.z), bucket(thi.y, thi.z))
+    };
+    // compressed rows: triangles per (y, z) bucket
+    let mut start = vec![0u32; n * n + 1];
+    for &i in &candidates {
+        let ((y0, z0), (y1, z1)) = cells_of(i);
         for z in z0..=z1 {
             for y in y0..=y1 {
-                grid[y + n * z].push(i as u32);
+                start[y + n * z + 1] += 1;
             }
         }
     }
-    list.iter()
-        .zip(firsts)
-        .map(|(c, &first)| {
-            let t = tris[first];
-            // a generic point next to the triangle: irrational-ish barycentric
-            // weights, nudged off its plane so that it is off any lattice plane
-            let normal = (t[1] - t[0]).cross(t[2] - t[0]);
-            let size = (t[1] - t[0]).length().max((t[2] - t[0]).length());
-            let nudge = normal.normalize_or_zero() * size * 1.37e-6
-                + DVec3::new(0.0, 0.71e-7, 0.43e-7) * size;
-            let mut p = t[0] * 0.2134 + t[1] * 0.3712 + t[2] * 0.4154 + nudge;
+    for c in 0..n * n {
+        start[c + 1] += start[c];
+    }
+    let mut fill = start.clone();
+    let mut grid = vec![0u32; start[n * n] as usize];
+    for &i in &candidates {
+        let ((y0, z0), (y1, z1)) = cells_of(i);
+        for z in z0..=z1 {
+            for y in y0..=y1 {
+                grid[fill[y + n * z] as usize] = i;
+                fill[y + n * z] += 1;
+            }
+        }
+    }
+    (0..k)
+        .map(|ci| {
+            if !contained[ci] {
+                return 0;
+            }
+            let t = oriented(firsts[ci]);
+            let mut p = probe_point(&t, 0);
             let mut crossings: hashbrown::HashMap<u32, u32> = hashbrown::HashMap::new();
             for attempt in 0..3 {
-                let (by, bz) = bucket(p.y, p.z);
                 crossings.clear();
+                let (by, bz) = bucket(p.y, p.z);
+                let c = by + n * bz;
                 let mut ambiguous = false;
-                for &i in &grid[by + n * bz] {
-                    if roots[i as usize] == c.0 {
+                for &i in &grid[start[c] as usize..start[c + 1] as usize] {
+                    let root = roots[i as usize];
+                    if root == list[ci].0 {
                         continue;
                     }
                     match ray_crosses(p, &tris[i as usize]) {
-                        Some(true) => *crossings.entry(roots[i as usize]).or_insert(0) += 1,
+                        Some(true) => *crossings.entry(root).or_insert(0) += 1,
                         Some(false) => {}
                         None => ambiguous = true,
                     }
@@ -619,16 +812,30 @@ fn nesting_depths(
                 if !ambiguous {
                     break;
                 }
-                let k = 1.0 + attempt as f64;
-                p = t[0] * 0.3191
-                    + t[1] * 0.2473
-                    + t[2] * 0.4336
-                    + nudge * (1.0 + 0.61 * k)
-                    + DVec3::new(0.0, 0.29e-7, -0.53e-7) * size * k;
+                p = probe_point(&t, attempt + 1);
             }
-            crossings.values().filter(|&&k| k % 2 == 1).count()
+            crossings.values().filter(|&&c| c % 2 == 1).count()
         })
         .collect()
+}
+
+/// A generic point next to triangle `t` (attempt 0, 1, …: different points):
+/// irrational-ish barycentric weights, nudged off the triangle's plane so that
+/// it lies on no lattice plane of the grid the mesh came from.
+fn probe_point(t: &[DVec3; 3], attempt: usize) -> DVec3 {
+    let normal = (t[1] - t[0]).cross(t[2] - t[0]);
+    let size = (t[1] - t[0]).length().max((t[2] - t[0]).length());
+    let nudge =
+        normal.normalize_or_zero() * size * 1.37e-6 + DVec3::new(0.0, 0.71e-7, 0.43e-7) * size;
+    if attempt == 0 {
+        return t[0] * 0.2134 + t[1] * 0.3712 + t[2] * 0.4154 + nudge;
+    }
+    let f = attempt as f64;
+    t[0] * 0.3191
+        + t[1] * 0.2473
+        + t[2] * 0.4336
+        + nudge * (1.0 + 0.61 * f)
+        + DVec3::new(0.0, 0.29e-7, -0.53e-7) * size * f
 }
 
 /// Whether the ray from `p` along +x crosses triangle `t`; `None` when it
@@ -657,25 +864,26 @@ fn ray_crosses(p: DVec3, t: &[DVec3; 3]) -> Option<bool> {
 
 /// Invariant 5: each vertex lies within `tol` voxels of a (sub)voxel of every
 /// label of the patches that use it.
-fn check_fidelity(mesh: &InterfaceMesh, rv: &RefinedVolume, tol: f64) -> Check {
+fn check_fidelity(mesh: &InterfaceMesh, stars: &Stars, rv: &RefinedVolume, tol: f64) -> Check {
     let mut c = Check::new("vertices near their labels");
-    let mut vertex_labels: Vec<(u32, LabelId)> = Vec::with_capacity(mesh.triangles.len() * 6);
-    for (t, tri) in mesh.triangles.iter().enumerate() {
-        let [a, b] = mesh.patches[mesh.triangle_patch[t] as usize].labels;
-        for &v in tri {
-            vertex_labels.push((v, a));
-            vertex_labels.push((v, b));
-        }
-    }
-    sort(&mut vertex_labels);
-    vertex_labels.dedup();
     let geometry = mesh.geometry;
-    let bad: Vec<(u32, LabelId, f64)> = vertex_labels
-        .par_iter()
-        .filter_map(|&(v, l)| {
+    let bad: Vec<(u32, LabelId, f64)> = (0..mesh.positions.len() as u32)
+        .into_par_iter()
+        .flat_map_iter(|v| {
+            let mut labels: Vec<LabelId> = stars
+                .of(v as usize)
+                .iter()
+                .flat_map(|&corner| {
+                    mesh.patches[mesh.triangle_patch[(corner / 3) as usize] as usize].labels
+                })
+                .collect();
+            labels.sort_unstable();
+            labels.dedup();
             let p = geometry.physical_to_index(mesh.positions[v as usize]);
-            let d = distance_to_label(rv, p, l, tol);
-            (d > tol + 1e-9).then_some((v, l, d))
+            labels.into_iter().filter_map(move |l| {
+                let d = distance_to_label(rv, p, l, tol);
+                (d > tol + 1e-9).then_some((v, l, d))
+            })
         })
         .collect();
     for (v, l, d) in bad {
