@@ -20,6 +20,7 @@ pub mod config;
 pub mod error;
 pub mod extract;
 pub mod io;
+pub mod iso;
 pub mod mesh;
 pub mod output;
 pub mod phantom;

@@ -330,6 +330,99 @@ pub fn is_critical_mask(mask: u8) -> bool {
     bits[(mask >> 6) as usize] >> (mask & 63) & 1 == 1
 }
 
+/// Half-edges at `g` where the mask's boundary has four faces (two diagonal
+/// cells of the mask around the edge: VESTA's points of ambiguity), as a 6-bit
+/// set (bit `e` for half-edge `e`).
+pub fn ambiguous_edges(mask: u8) -> u8 {
+    let mut bits = 0;
+    for e in 0..6 {
+        let (octs, _) = edge_star(e);
+        // octants come as (sb, sc) = (0,0), (1,0), (0,1), (1,1): diagonals 0–3 and 1–2
+        let m = octs.map(|o| mask >> o & 1);
+        if m[0] == m[3] && m[1] == m[2] && m[0] != m[1] {
+            bits |= 1 << e;
+        }
+    }
+    bits
+}
+
+/// Like [`next_face`], with the ambiguity rule given for this half-edge only.
+fn next_face_at(mask: u8, from: usize, e: usize, connect: bool) -> usize {
+    let (_, faces) = edge_star(e);
+    let cell_of = |f: usize| {
+        let (lo, hi) = face_octants(f);
+        if mask >> lo & 1 == 1 { lo } else { hi }
+    };
+    let from_cell = cell_of(from);
+    let (mut count, mut only) = (0, from);
+    let (mut same, mut other) = (None, None);
+    for &f in &faces {
+        if f == from || !is_boundary(mask, f) {
+            continue;
+        }
+        count += 1;
+        only = f;
+        if face_in_out(mask, f).0 == e {
+            if cell_of(f) == from_cell {
+                same = Some(f);
+            } else {
+                other = Some(f);
+            }
+        }
+    }
+    if count == 1 {
+        return only;
+    }
+    let pick = if connect {
+        other.or(same)
+    } else {
+        same.or(other)
+    };
+    pick.expect("a boundary face continues the walk")
+}
+
+/// Traces the boundary cycles of `mask` around a vertex with a choice per
+/// half-edge: at a point of ambiguity on half-edge `e` the two diagonal cells
+/// are joined when bit `e` of `connect` is set and kept apart otherwise (VESTA's
+/// "mixed" mode). Bits of edges that are not ambiguous do not matter, so
+/// `trace_per_edge(m, 0) == trace(m, Disconnect)` and
+/// `trace_per_edge(m, 0x3f) == trace(m, Connect)`.
+pub fn trace_per_edge(mask: u8, connect: u8) -> MaskStar {
+    let mut star = MaskStar {
+        face_count: 0,
+        cycles: 0,
+        has_critical_edge: ambiguous_edges(mask) != 0,
+        steps: [CycleStep::default(); MAX_CYCLE],
+        cycle_ends: [0; 4],
+    };
+    let mut used = [false; 12];
+    star.face_count = (0..12).filter(|&f| is_boundary(mask, f)).count() as u8;
+    let mut n = 0;
+    for start in 0..12 {
+        if used[start] || !is_boundary(mask, start) {
+            continue;
+        }
+        let mut f = start;
+        loop {
+            used[f] = true;
+            let (i, o) = face_in_out(mask, f);
+            star.steps[n] = CycleStep {
+                face: f as u8,
+                in_edge: i as u8,
+                out_edge: o as u8,
+            };
+            n += 1;
+            f = next_face_at(mask, f, o, connect >> o & 1 == 1);
+            if f == start {
+                break;
+            }
+        }
+        star.cycle_ends[star.cycles as usize] = n as u8;
+        star.cycles += 1;
+    }
+    star
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -437,5 +530,49 @@ mod tests {
                 .filter(|&m| m != 0 && m != 255 && trace(m, Ambiguity::Disconnect).is_manifold())
                 .count()
         );
+    }
+
+    #[test]
+    fn per_edge_trace_matches_global_rules() {
+        for m in 0..=255u8 {
+            assert_eq!(
+                trace_per_edge(m, 0),
+                trace(m, Ambiguity::Disconnect),
+                "mask {m:08b}"
+            );
+            assert_eq!(
+                trace_per_edge(m, 0x3f),
+                trace(m, Ambiguity::Connect),
+                "mask {m:08b}"
+            );
+            assert_eq!(
+                ambiguous_edges(m) != 0,
+                trace(m, Ambiguity::Disconnect).has_critical_edge
+            );
+        }
+    }
+
+    #[test]
+    fn per_edge_trace_is_closed_and_uses_every_face_once() {
+        for m in 0..=255u8 {
+            let amb = ambiguous_edges(m);
+            for connect in 0..64u8 {
+                let s = trace_per_edge(m, connect);
+                // only ambiguous edges matter
+                assert_eq!(s, trace_per_edge(m, connect & amb), "mask {m:08b}");
+                let mut seen = [0u8; 12];
+                for i in 0..s.cycles as usize {
+                    let c = s.cycle(i);
+                    assert!(c.len() >= 3, "mask {m:08b} connect {connect:06b}");
+                    for k in 0..c.len() {
+                        seen[c[k].face as usize] += 1;
+                        assert_eq!(c[k].out_edge, c[(k + 1) % c.len()].in_edge);
+                    }
+                }
+                for f in 0..12 {
+                    assert_eq!(seen[f] as usize, is_boundary(m, f) as usize);
+                }
+            }
+        }
     }
 }

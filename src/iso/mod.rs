@@ -1,0 +1,3 @@
+//! VESTA iso-surfaces (placeholder during development).
+mod table;
+pub use table::{CycleType, cycle_types};

@@ -1,0 +1,419 @@
+//! The marching table of VESTA iso-surfaces: for every configuration of a
+//! 2×2×2 voxel cell, its N-cycles, their L triangulations and their types.
+//!
+//! A configuration is the 8-bit mask of active cells around a grid vertex (see
+//! [`crate::star`]) plus, for VESTA's mixed mode, the 6-bit set of ambiguous
+//! half-edges at which the two diagonal active cells are joined. The table has
+//! one [`CellEntry`] per (mask, connect) pair; connect bits on edges that are not
+//! ambiguous are ignored, so the global modes use connect = 0 (disconnect) and
+//! connect = 0x3f (connect).
+//!
+//! **Cycle types.** Two cycles have the same type when a rotation of the cell
+//! (one of the 24 proper symmetries of the cube) maps the polygon of one's
+//! support points onto the other's, traversed in either direction. Mirror
+//! images count as different types, as in the paper's figures (one 6-cycle and
+//! one 8-cycle type are mirror images of another). Mixed mode decides each
+//! ambiguous edge by the mean of its four voxels, and not every combination of
+//! decisions can arise that way: around a vertex the means of the edges `+a`
+//! and `−a` always add up to twice the mean of all eight voxels, so joining at
+//! both ends of one axis and at neither end of another is impossible (18 of
+//! the 64 combinations of the two checkerboard masks). Over all realizable
+//! configurations there are exactly the paper's 14 types: N = 3, 4, 4, 5, 6, 6,
+//! 6, 6, 7 in the global modes, and 8, 8, 8, 9, 12 only in mixed mode (see
+//! [`cycle_types`]). The unrealizable configurations are in the table too (for
+//! completeness) but their cycles have no listed type.
+//!
+//! **L triangulation.** Each cycle is cut into N − 2 triangles on its own points
+//! (no extra point): the diagonals of the minimum-area triangulation of the
+//! cycle's undisplaced support points (the face centres). Ties (planar cycles)
+//! go to the lowest split index, so the table is deterministic.
+
+use std::sync::OnceLock;
+
+use glam::DVec3;
+
+use crate::extract::min_area_triangulation;
+use crate::star::{MAX_CYCLE, ambiguous_edges, face_center_offset, trace_per_edge};
+
+/// Type id of cycles that only unrealizable mixed configurations produce.
+pub(crate) const NO_TYPE: u8 = u8::MAX;
+
+/// Most triangles one configuration produces (12 faces in one cycle → 10).
+pub(crate) const MAX_TRIS: usize = 10;
+
+/// One configuration: its cycles (as quarter-face ids) and their L triangles.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct CellEntry {
+    /// Quarter-face ids of all cycles, concatenated, in cycle order.
+    pub faces: [u8; MAX_CYCLE],
+    /// `ends[i]`: one past the last face of cycle `i`.
+    pub ends: [u8; 4],
+    /// Number of cycles.
+    pub cycles: u8,
+    /// Type id of each cycle (index into [`cycle_types`]; [`NO_TYPE`] for
+    /// cycles of unrealizable mixed configurations).
+    pub types: [u8; 4],
+    /// L triangles as quarter-face ids, cycle after cycle.
+    pub tris: [[u8; 3]; MAX_TRIS],
+    /// `tri_ends[i]`: one past the last triangle of cycle `i`.
+    pub tri_ends: [u8; 4],
+}
+
+impl CellEntry {
+    /// Faces of cycle `i`.
+    #[inline]
+    pub fn cycle(&self, i: usize) -> &[u8] {
+        let start = if i == 0 { 0 } else { self.ends[i - 1] as usize };
+        &self.faces[start..self.ends[i] as usize]
+    }
+
+    /// L triangles of cycle `i`.
+    #[inline]
+    pub fn cycle_tris(&self, i: usize) -> &[[u8; 3]] {
+        let start = if i == 0 {
+            0
+        } else {
+            self.tri_ends[i - 1] as usize
+        };
+        &self.tris[start..self.tri_ends[i] as usize]
+    }
+
+    /// Number of boundary quarter-faces.
+    #[inline]
+    pub fn face_count(&self) -> usize {
+        if self.cycles == 0 {
+            0
+        } else {
+            self.ends[self.cycles as usize - 1] as usize
+        }
+    }
+
+    /// All L triangles.
+    #[inline]
+    pub fn all_tris(&self) -> &[[u8; 3]] {
+        let n = if self.cycles == 0 {
+            0
+        } else {
+            self.tri_ends[self.cycles as usize - 1] as usize
+        };
+        &self.tris[..n]
+    }
+}
+
+/// One of VESTA's 14 cycle types.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct CycleType {
+    /// Short name: the length, and a letter where several types share it ("6b").
+    pub name: String,
+    /// Number of support points N.
+    pub length: usize,
+    /// Whether the undisplaced support points lie in one plane.
+    pub planar: bool,
+    /// Whether the type occurs in the global connect / disconnect modes (the
+    /// other types need mixed mode).
+    pub global: bool,
+    /// A configuration producing it: active-cell mask around the vertex (bit 0 =
+    /// +x cell, bit 1 = +y, bit 2 = +z) and the half-edges joined in mixed mode.
+    pub example_mask: u8,
+    pub example_connect: u8,
+}
+
+/// The marching table and the type list, built once.
+pub(crate) struct Table {
+    entries: Vec<CellEntry>,
+    types: Vec<CycleType>,
+}
+
+impl Table {
+    /// The table (built on first use, about a millisecond).
+    pub(crate) fn get() -> &'static Table {
+        static T: OnceLock<Table> = OnceLock::new();
+        T.get_or_init(build)
+    }
+
+    /// Entry of a mask with the given joined half-edges.
+    #[inline]
+    pub(crate) fn entry(&self, mask: u8, connect: u8) -> &CellEntry {
+        &self.entries[(mask as usize) << 6 | (connect & 0x3f) as usize]
+    }
+
+    pub(crate) fn types(&self) -> &[CycleType] {
+        &self.types
+    }
+}
+
+/// VESTA's cycle types, ordered by length (see the module docs for the
+/// definition of a type).
+pub fn cycle_types() -> &'static [CycleType] {
+    Table::get().types()
+}
+
+/// Undisplaced support point of a quarter-face, in cells, relative to the vertex.
+pub(crate) fn face_point(f: usize) -> DVec3 {
+    let o = face_center_offset(f);
+    DVec3::new(o[0] as f64, o[1] as f64, o[2] as f64) * 0.5
+}
+
+/// Canonical form of a cycle under the 24 rotations of the cube, the choice of
+/// start and reversal: the smallest sequence of rotated face-centre offsets.
+fn canonical(cycle: &[u8]) -> Vec<[i32; 3]> {
+    let pts: Vec<[i32; 3]> = cycle
+        .iter()
+        .map(|&f| face_center_offset(f as usize))
+        .collect();
+    let n = pts.len();
+    let perms = [
+        [0, 1, 2],
+        [0, 2, 1],
+        [1, 0, 2],
+        [1, 2, 0],
+        [2, 0, 1],
+        [2, 1, 0],
+    ];
+    // parity of each permutation above: +1 even, −1 odd
+    let parity = [1, -1, -1, 1, 1, -1];
+    let mut best: Option<Vec<[i32; 3]>> = None;
+    for (p, par) in perms.into_iter().zip(parity) {
+        for signs in 0..8u32 {
+            let det = if signs.count_ones() % 2 == 1 {
+                -par
+            } else {
+                par
+            };
+            if det < 0 {
+                continue;
+            }
+            let t: Vec<[i32; 3]> = pts
+                .iter()
+                .map(|q| {
+                    [0, 1, 2].map(|a| {
+                        let s = if signs >> a & 1 == 1 { -1 } else { 1 };
+                        s * q[p[a]]
+                    })
+                })
+                .collect();
+            for rev in [false, true] {
+                for start in 0..n {
+                    let seq: Vec<[i32; 3]> = (0..n)
+                        .map(|k| {
+                            let i = if rev {
+                                (start + n - k) % n
+                            } else {
+                                (start + k) % n
+                            };
+                            t[i]
+                        })
+                        .collect();
+                    if best.as_ref().is_none_or(|b| seq < *b) {
+                        best = Some(seq);
+                    }
+                }
+            }
+        }
+    }
+    best.unwrap_or_default()
+}
+
+/// Whether mixed mode can produce this choice of joined edges: the means of
+/// the edges `+a` and `−a` sum to twice the mean of the cell, so one axis with
+/// both ends joined and another with neither end joined contradict each other.
+pub(crate) fn realizable(mask: u8, connect: u8) -> bool {
+    let amb = ambiguous_edges(mask);
+    let connect = connect & amb;
+    let (mut both, mut neither) = (false, false);
+    for a in 0..3 {
+        let pair = 0b11 << (2 * a);
+        if amb & pair == pair {
+            both |= connect & pair == pair;
+            neither |= connect & pair == 0;
+        }
+    }
+    !(both && neither)
+}
+
+fn is_planar(cycle: &[u8]) -> bool {
+    let p: Vec<DVec3> = cycle.iter().map(|&f| face_point(f as usize)).collect();
+    let n = (p[1] - p[0]).cross(p[2] - p[0]);
+    p.iter().all(|q| (*q - p[0]).dot(n).abs() < 1e-12)
+}
+
+/// L triangles of one cycle (as quarter-face ids).
+fn l_triangles(cycle: &[u8]) -> Vec<[u8; 3]> {
+    let pts: Vec<DVec3> = cycle.iter().map(|&f| face_point(f as usize)).collect();
+    let tris =
+        min_area_triangulation(&pts).expect("cell cycles have a non-degenerate triangulation");
+    tris.into_iter().map(|t| t.map(|i| cycle[i])).collect()
+}
+
+fn build() -> Table {
+    // Canonical configurations first: connect ⊆ ambiguous edges.
+    let mut raw: Vec<(u8, u8, Vec<Vec<u8>>)> = Vec::new();
+    for mask in 0..=255u8 {
+        let amb = ambiguous_edges(mask);
+        for connect in 0..64u8 {
+            if connect & !amb != 0 {
+                continue;
+            }
+            let star = trace_per_edge(mask, connect);
+            let cycles = (0..star.cycles as usize)
+                .map(|i| star.cycle(i).iter().map(|s| s.face).collect())
+                .collect();
+            raw.push((mask, connect, cycles));
+        }
+    }
+    // Types: distinct canonical forms, sorted by length then form.
+    let mut forms: Vec<(usize, Vec<[i32; 3]>, u8, u8, bool, bool)> = Vec::new();
+    for (mask, connect, cycles) in raw.iter().filter(|r| realizable(r.0, r.1)) {
+        let global = *connect == 0 || *connect == ambiguous_edges(*mask);
+        for c in cycles {
+            let form = canonical(c);
+            match forms.iter_mut().find(|f| f.1 == form) {
+                Some(f) => f.5 |= global,
+                None => forms.push((c.len(), form, *mask, *connect, is_planar(c), global)),
+            }
+        }
+    }
+    forms.sort_by(|a, b| (a.0, &a.1).cmp(&(b.0, &b.1)));
+    let types: Vec<CycleType> = forms
+        .iter()
+        .enumerate()
+        .map(|(i, f)| {
+            let same: Vec<usize> = (0..forms.len()).filter(|&j| forms[j].0 == f.0).collect();
+            let name = if same.len() == 1 {
+                f.0.to_string()
+            } else {
+                let k = same.iter().position(|&j| j == i).unwrap_or(0);
+                format!("{}{}", f.0, (b'a' + k as u8) as char)
+            };
+            CycleType {
+                name,
+                length: f.0,
+                planar: f.4,
+                global: f.5,
+                example_mask: f.2,
+                example_connect: f.3,
+            }
+        })
+        .collect();
+    let mut canonical_entries = vec![CellEntry::default(); 256 * 64];
+    for (mask, connect, cycles) in &raw {
+        let mut e = CellEntry::default();
+        let (mut nf, mut nt) = (0usize, 0usize);
+        for (i, c) in cycles.iter().enumerate() {
+            e.faces[nf..nf + c.len()].copy_from_slice(c);
+            nf += c.len();
+            e.ends[i] = nf as u8;
+            let form = canonical(c);
+            e.types[i] = forms
+                .iter()
+                .position(|f| f.1 == form)
+                .map_or(NO_TYPE, |t| t as u8);
+            for t in l_triangles(c) {
+                e.tris[nt] = t;
+                nt += 1;
+            }
+            e.tri_ends[i] = nt as u8;
+        }
+        e.cycles = cycles.len() as u8;
+        canonical_entries[(*mask as usize) << 6 | *connect as usize] = e;
+    }
+    // Non-canonical connect sets copy the entry of their ambiguous part.
+    let entries = (0..256 * 64)
+        .map(|i| {
+            let mask = (i >> 6) as u8;
+            let connect = (i & 63) as u8 & ambiguous_edges(mask);
+            canonical_entries[(mask as usize) << 6 | connect as usize]
+        })
+        .collect();
+    Table { entries, types }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::star::edge_star;
+
+    #[test]
+    fn fourteen_types_nine_global() {
+        let t = cycle_types();
+        let names: Vec<&str> = t.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(t.len(), 14, "{names:?}");
+        let lengths: Vec<usize> = t.iter().map(|c| c.length).collect();
+        assert_eq!(lengths, [3, 4, 4, 5, 6, 6, 6, 6, 7, 8, 8, 8, 9, 12]);
+        let global: Vec<usize> = t.iter().filter(|c| c.global).map(|c| c.length).collect();
+        assert_eq!(global, [3, 4, 4, 5, 6, 6, 6, 6, 7]);
+        // planar: the triangle, both 4-cycles and one hexagon (the paper's 7.f)
+        let planar: Vec<usize> = t.iter().filter(|c| c.planar).map(|c| c.length).collect();
+        assert_eq!(planar, [3, 4, 4, 6], "{names:?}");
+    }
+
+    /// Every joining pattern the mean rule can produce, by trying all small
+    /// integer values (voxel minus iso) with ties included.
+    fn realizable_by_search(mask: u8) -> [bool; 64] {
+        let amb = ambiguous_edges(mask);
+        let mut seen = [false; 64];
+        let k = 3u64;
+        let active = mask.count_ones();
+        let total = (k + 1).pow(active) * k.pow(8 - active);
+        for code in 0..total {
+            let mut c = code;
+            let mut x = [0i64; 8];
+            for (o, xo) in x.iter_mut().enumerate() {
+                if mask >> o & 1 == 1 {
+                    *xo = (c % (k + 1)) as i64;
+                    c /= k + 1;
+                } else {
+                    *xo = -1 - (c % k) as i64;
+                    c /= k;
+                }
+            }
+            let mut connect = 0u8;
+            for e in 0..6 {
+                let (octs, _) = edge_star(e);
+                if amb >> e & 1 == 1 && octs.iter().map(|&o| x[o]).sum::<i64>() >= 0 {
+                    connect |= 1 << e;
+                }
+            }
+            seen[connect as usize] = true;
+        }
+        seen
+    }
+
+    #[test]
+    fn realizability_rule_matches_search() {
+        for mask in 0..=255u8 {
+            let amb = ambiguous_edges(mask);
+            if amb.count_ones() < 2 {
+                continue;
+            }
+            let seen = realizable_by_search(mask);
+            for connect in 0..64u8 {
+                if connect & !amb == 0 {
+                    assert_eq!(
+                        realizable(mask, connect),
+                        seen[connect as usize],
+                        "mask {mask:08b} connect {connect:06b}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn entries_cover_every_boundary_face_and_triangulate_fully() {
+        let table = Table::get();
+        for mask in 0..=255u8 {
+            for connect in 0..64u8 {
+                let e = table.entry(mask, connect);
+                let star = trace_per_edge(mask, connect);
+                assert_eq!(e.face_count(), star.face_count as usize);
+                for i in 0..e.cycles as usize {
+                    assert_eq!(e.cycle_tris(i).len(), e.cycle(i).len() - 2);
+                    if realizable(mask, connect) {
+                        assert_ne!(e.types[i], NO_TYPE, "mask {mask:08b} connect {connect:06b}");
+                    }
+                }
+            }
+        }
+    }
+}
