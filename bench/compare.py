@@ -17,7 +17,8 @@ the heart phantom with `septa phantom`, and for every volume, in the same run:
 * vtkSurfaceNets3D (smoothing off, triangle output, every label value present
   except the background) and vtkDiscreteFlyingEdges3D (every label value present
   except the background), on the same voxels, 2 threads (vtkSMPTools STDThread),
-  timing `Update()` only, best of N, a fresh filter each time;
+  timing `Update()` only, best of N, a fresh filter each time; the repeats of
+  all tools are interleaved so that other load on the machine hits them alike;
 * every result is written as a PLY with face properties label_a / label_b and
   checked with `septa check FILE --json`; the failure count of every check is
   reported.
@@ -196,19 +197,6 @@ def flying_edges(vtk, img, labels):
     return f
 
 
-def time_update(make, repeats: int):
-    """Best wall time of `Update()` over `repeats` fresh filters; the last output."""
-    best = float("inf")
-    out = None
-    for _ in range(repeats):
-        f = make()
-        t = time.perf_counter()
-        f.Update()
-        best = min(best, time.perf_counter() - t)
-        out = f.GetOutput()
-    return best, out
-
-
 def surface_nets_faces(pd):
     """Triangles and (label_a, label_b) with label_a < label_b, normal a -> b."""
     import numpy as np
@@ -329,28 +317,22 @@ def septa_check(exe: Path, ply: Path) -> dict:
     return out
 
 
-def septa_extract(exe: Path, vol: Path, out: Path, repeats: int) -> dict:
-    best_pe, best_wall, best_timings = float("inf"), float("inf"), None
-    for _ in range(repeats):
-        t = time.perf_counter()
-        r = run([str(exe), "extract", str(vol), "-o", str(out), "--force", "-q"])
-        wall = time.perf_counter() - t
-        if r.returncode != 0:
-            raise SystemExit(f"septa extract {vol} failed: {r.stderr}")
-        m = json.loads((out / "manifest.json").read_text())
-        ts = m["timings_s"]
-        pe = ts["preprocess"] + ts["extract"]
-        if pe < best_pe:
-            best_pe, best_timings = pe, ts
-        best_wall = min(best_wall, wall)
+def septa_extract(exe: Path, vol: Path, out: Path) -> dict:
+    """One `septa extract` run: its wall time and manifest figures."""
+    t = time.perf_counter()
+    r = run([str(exe), "extract", str(vol), "-o", str(out), "--force", "-q"])
+    wall = time.perf_counter() - t
+    if r.returncode != 0:
+        raise SystemExit(f"septa extract {vol} failed: {r.stderr}")
+    m = json.loads((out / "manifest.json").read_text())
+    ts = m["timings_s"]
     return {
-        "time": best_pe,
-        "wall": best_wall,
-        "timings": best_timings,
+        "time": ts["preprocess"] + ts["extract"],
+        "wall": wall,
+        "timings": ts,
         "vertices": m["vertices"],
         "triangles": m["triangles"],
         "manifest_passed": m["validation"]["passed"],
-        "preprocessing": m["preprocessing"],
     }
 
 
@@ -433,56 +415,72 @@ def compare_one(exe, vtk, nib, np, vol: Path, name: str, work: Path, repeats: in
     background = int(bv[np.argmax(bc)])
     fg = [v for v in values if v != background]
     dims = "×".join(map(str, labels.shape))
-    rows = []
-
-    # septa
-    out = work / f"{name}.septa"
-    s = septa_extract(exe, vol, out, repeats)
-    chk = septa_check(exe, out / "interfaces.ply")
-    rows.append(dict(tool="septa (preprocess+extract)", volume=name, dims=dims, load=loadavg(),
-                     time=s["time"], wall=s["wall"], vertices=s["vertices"], triangles=s["triangles"],
-                     check=chk, extra=s["timings"]))
-    print(f"septa: {s['time']:.3f} s (preprocess+extract), command {s['wall']:.3f} s; {s['timings']}", flush=True)
-    shutil.rmtree(out, ignore_errors=True)
 
     # VTK does not close surfaces at the volume's border, septa does (the outside
-    # is the background): VTK gets the volume padded with one background voxel on
-    # each side (its points are shifted back); the unpadded time is shown too.
+    # is the background): VTK's validated runs get the volume padded with one
+    # background voxel on each side (points are shifted back); the time on the
+    # unpadded volume is shown too.
     img0 = vtk_image(labels, vtk)
-    t0_sn, pd = time_update(lambda: surface_nets(vtk, img0, fg, background), repeats)
-    t0_fe, pd = time_update(lambda: flying_edges(vtk, img0, fg), repeats)
-    del pd, img0
     img = vtk_image(np.pad(labels, 1, constant_values=background), vtk)
-    # surface nets, triangles (the one compared) and quads (VTK's default, time only)
-    t_sn, pd = time_update(lambda: surface_nets(vtk, img, fg, background), repeats)
-    tri, lab = surface_nets_faces(pd)
-    p = to_lps(points_of(pd) - 1.0, img_nii.affine)
-    ply = work / f"{name}.surfacenets.ply"
-    write_ply(ply, p, tri, lab)
-    del pd
-    chk = septa_check(exe, ply)
-    ply.unlink()
-    rows.append(dict(tool="vtkSurfaceNets3D (triangles)", volume=name, dims=dims, load=loadavg(),
-                     time=t_sn, time0=t0_sn, vertices=len(p), triangles=len(tri), check=chk))
-    print(f"surface nets: {t_sn:.3f} s, {len(p):,} points, {len(tri):,} triangles", flush=True)
-    t_q, pd = time_update(lambda: surface_nets(vtk, img, fg, background, triangles=False), repeats)
-    rows.append(dict(tool="vtkSurfaceNets3D (quads, default)", volume=name, dims=dims, load=loadavg(),
-                     time=t_q, vertices=pd.GetNumberOfPoints(), triangles=None,
-                     quads=pd.GetNumberOfCells(), check=None))
-    print(f"surface nets (quads): {t_q:.3f} s", flush=True)
-    del pd
+    makers = {
+        "sn": lambda: surface_nets(vtk, img, fg, background),
+        "snq": lambda: surface_nets(vtk, img, fg, background, triangles=False),
+        "fe": lambda: flying_edges(vtk, img, fg),
+        "sn0": lambda: surface_nets(vtk, img0, fg, background),
+        "fe0": lambda: flying_edges(vtk, img0, fg),
+    }
+    # Repeats are interleaved (septa, then each VTK filter, then again) so that
+    # other processes on the machine slow all tools alike; best of each.
+    out = work / f"{name}.septa"
+    best = {k: float("inf") for k in ["septa", "wall", *makers]}
+    outputs = {}
+    s = None
+    for _ in range(repeats):
+        one = septa_extract(exe, vol, out)
+        if one["time"] < best["septa"]:
+            best["septa"], s = one["time"], one
+        best["wall"] = min(best["wall"], one["wall"])
+        for k, make in makers.items():
+            f = make()
+            t = time.perf_counter()
+            f.Update()
+            best[k] = min(best[k], time.perf_counter() - t)
+            if k in ("sn", "fe", "snq"):
+                outputs[k] = f.GetOutput()
+            del f
+    load = loadavg()
+    print(f"timed (load {load}): " + ", ".join(f"{k} {v:.3f}" for k, v in best.items()), flush=True)
+    del img0, img
 
-    t_fe, pd = time_update(lambda: flying_edges(vtk, img, fg), repeats)
-    tri, lab = flying_edges_faces(pd)
-    p = to_lps(points_of(pd) - 1.0, img_nii.affine)
-    ply = work / f"{name}.flyingedges.ply"
-    write_ply(ply, p, tri, lab)
-    del pd
-    chk = septa_check(exe, ply)
-    ply.unlink()
-    rows.append(dict(tool="vtkDiscreteFlyingEdges3D", volume=name, dims=dims, load=loadavg(),
-                     time=t_fe, time0=t0_fe, vertices=len(p), triangles=len(tri), check=chk))
-    print(f"flying edges: {t_fe:.3f} s, {len(p):,} points, {len(tri):,} triangles", flush=True)
+    chk = septa_check(exe, out / "interfaces.ply")
+    shutil.rmtree(out, ignore_errors=True)
+    rows = [dict(tool="septa (preprocess+extract)", volume=name, dims=dims, load=load,
+                 time=best["septa"], wall=best["wall"], vertices=s["vertices"],
+                 triangles=s["triangles"], check=chk, extra=s["timings"])]
+    print(f"septa: {best['septa']:.3f} s (preprocess+extract), command {best['wall']:.3f} s; "
+          f"{s['vertices']:,} vertices, {s['triangles']:,} triangles", flush=True)
+
+    for key, tool, faces in [
+        ("sn", "vtkSurfaceNets3D (triangles)", surface_nets_faces),
+        ("fe", "vtkDiscreteFlyingEdges3D", flying_edges_faces),
+    ]:
+        pd = outputs.pop(key)
+        tri, lab = faces(pd)
+        p = to_lps(points_of(pd) - 1.0, img_nii.affine)
+        del pd
+        ply = work / f"{name}.{key}.ply"
+        write_ply(ply, p, tri, lab)
+        chk = septa_check(exe, ply)
+        ply.unlink()
+        rows.append(dict(tool=tool, volume=name, dims=dims, load=load, time=best[key],
+                         time0=best[key + "0"], vertices=len(p), triangles=len(tri), check=chk))
+        print(f"{tool}: {best[key]:.3f} s, {len(p):,} points, {len(tri):,} triangles", flush=True)
+        if key == "sn":
+            pd = outputs.pop("snq")
+            rows.append(dict(tool="vtkSurfaceNets3D (quads, default)", volume=name, dims=dims,
+                             load=load, time=best["snq"], vertices=pd.GetNumberOfPoints(),
+                             triangles=None, quads=pd.GetNumberOfCells(), check=None))
+            del pd
     ref = rows[0]["time"]
     for r in rows:
         r["ratio"] = r["time"] / ref
