@@ -26,21 +26,36 @@ pub(crate) fn assemble(
     geometry: Geometry,
 ) -> InterfaceMesh {
     let n_face = faces.map_or(0, |f| f.count()) as usize;
-    // Lattice keys referenced anywhere.
-    let mut keys: Vec<u64> = parts
+    // Lattice keys referenced anywhere: unique per part first (cheap, local),
+    // then merged; each part maps its local keys to global ids once.
+    let local_keys: Vec<Vec<u64>> = parts
         .par_iter()
-        .flat_map_iter(|p| {
-            p.tris
+        .map(|p| {
+            let mut k: Vec<u64> = p
+                .tris
                 .iter()
                 .flatten()
                 .copied()
                 .chain(p.chords.iter().flat_map(|c| [c.a, c.b]))
                 .filter(|r| r & TAG_MASK == TAG_KEY)
                 .map(|r| r & !TAG_MASK)
+                .collect();
+            k.sort_unstable();
+            k.dedup();
+            k
         })
         .collect();
+    let mut keys: Vec<u64> = local_keys.concat();
     keys.par_sort_unstable();
     keys.dedup();
+    let key_ids: Vec<Vec<u32>> = local_keys
+        .par_iter()
+        .map(|lk| {
+            lk.iter()
+                .map(|k| (n_face + keys.binary_search(k).expect("key collected")) as u32)
+                .collect()
+        })
+        .collect();
     let mut centroid_base = Vec::with_capacity(parts.len());
     let mut acc = n_face + keys.len();
     for p in &parts {
@@ -62,7 +77,10 @@ pub(crate) fn assemble(
         match r & TAG_MASK {
             0 => r as u32,
             TAG_KEY => {
-                (n_face + keys.binary_search(&(r & !TAG_MASK)).expect("key collected")) as u32
+                let local = &local_keys[part];
+                key_ids[part][local
+                    .binary_search(&(r & !TAG_MASK))
+                    .expect("key collected")]
             }
             TAG_CENTROID => (centroid_base[part] + (r & !TAG_MASK) as usize) as u32,
             _ => unreachable!("bad vertex tag"),

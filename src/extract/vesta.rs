@@ -264,6 +264,14 @@ fn emit_cycle(
 
 /// Junction chords at a vertex: half-edges with three or more labels around them.
 fn emit_chords(ctx: &Ctx, part: &mut Part, oct: &[LabelId; 8], v: &Vertex) {
+    // a junction needs three labels at the vertex
+    let a = oct[0];
+    let Some(b) = oct.iter().copied().find(|&l| l != a) else {
+        return;
+    };
+    if oct.iter().all(|&l| l == a || l == b) {
+        return;
+    }
     for e in 0..6 {
         let (octs, _) = edge_star(e);
         let mut labels = octs.map(|o| oct[o]);
@@ -296,7 +304,6 @@ fn octant_offsets(strides: [usize; 3]) -> [usize; 8] {
 pub(crate) fn coarse_slab(ctx: &Ctx, k0: i32, k1: i32) -> Part {
     let rv = ctx.rv;
     let grid = rv.grid();
-    let dims = grid.dims();
     let data = grid.data();
     let offsets = octant_offsets(grid.strides());
     let table = StarTable::disconnect();
@@ -304,10 +311,8 @@ pub(crate) fn coarse_slab(ctx: &Ctx, k0: i32, k1: i32) -> Part {
     let s = ctx.lat.s;
     let mut part = Part::default();
     for k in k0..k1 {
-        for j in 0..=dims.ny as i32 {
-            let row = grid.padded_index(0, j as usize, k as usize);
-            for i in 0..=dims.nx as i32 {
-                let base = row + i as usize;
+        for (i, j, base) in grid.candidates_in_plane(k as usize) {
+            {
                 let c0 = data[base];
                 let mut oct = [c0; 8];
                 let mut uniform = true;
@@ -422,6 +427,16 @@ impl<'a> Near<'a> {
         near
     }
 
+    /// Coarse cell of a slot.
+    #[inline]
+    fn cell_at(&self, slot: usize) -> [i32; 3] {
+        [
+            self.cell[0] + (slot % 3) as i32 - 1,
+            self.cell[1] + (slot / 3 % 3) as i32 - 1,
+            self.cell[2] + (slot / 9) as i32 - 1,
+        ]
+    }
+
     /// Slot of coarse cell `n` (must be within one cell of the centre).
     #[inline]
     fn slot(&self, n: [i32; 3]) -> usize {
@@ -490,67 +505,110 @@ fn refined_cell(ctx: &Ctx, part: &mut Part, c: [i32; 3]) {
     let s = ctx.lat.s;
     let near = Near::new(rv, c);
     let table = StarTable::disconnect();
-    for w in 0..=s {
-        for v in 0..=s {
-            for u in 0..=s {
-                let local = [u, v, w];
-                let p = [c[0] * s + u, c[1] * s + v, c[2] * s + w];
-                let mut oct = [0 as LabelId; 8];
-                for (o, slot) in oct.iter_mut().enumerate() {
-                    *slot = near.fine_label(
-                        [
-                            p[0] - 1 + (o & 1) as i32,
-                            p[1] - 1 + ((o >> 1) & 1) as i32,
-                            p[2] - 1 + ((o >> 2) & 1) as i32,
-                        ],
-                        s,
-                    );
-                }
-                if oct.iter().all(|&l| l == oct[0]) || !owns(&near, local, s) {
-                    continue;
-                }
-                let vert = Vertex {
-                    lattice: ctx.lat.of_fine_vertex(p),
-                    half: half_edges(&near, p, s),
-                };
-                let mut seen = 0u8;
-                for o in 0..8 {
-                    if seen >> o & 1 == 1 {
-                        continue;
-                    }
-                    let l = oct[o];
-                    let mask = mask_of(&oct, l);
-                    seen |= mask;
-                    let star: &MaskStar = table.get(mask);
-                    for cy in 0..star.cycles as usize {
-                        let mut steps = [Step {
-                            point: (0, DVec3::ZERO),
-                            neighbour: 0,
-                            in_edge: 0,
-                            out_edge: 0,
-                        }; 12];
-                        let mut n = 0;
-                        for st in star.cycle(cy) {
-                            let step = fine_step(ctx, &near, &oct, mask, p, st);
-                            // consecutive quarter-faces of one coarse face: one support point
-                            if n > 0 && steps[n - 1].point.0 == step.point.0 {
-                                steps[n - 1].out_edge = step.out_edge;
-                            } else {
-                                steps[n] = step;
-                                n += 1;
-                            }
-                        }
-                        if n > 1 && steps[n - 1].point.0 == steps[0].point.0 {
-                            steps[0].in_edge = steps[n - 1].in_edge;
-                            n -= 1;
-                        }
-                        emit_cycle(ctx, part, l, &steps[..n], &vert, None);
-                    }
-                }
-                emit_chords(ctx, part, &oct, &vert);
+    let ltable = LTable::get();
+    // fine labels of the voxel and a one-subvoxel border, local (u, v, w) in -1..=s
+    let w = (s + 2) as usize;
+    let mut block = vec![0 as LabelId; w * w * w];
+    for z in -1..=s {
+        for y in -1..=s {
+            for x in -1..=s {
+                block[(x + 1) as usize + w * ((y + 1) as usize + w * (z + 1) as usize)] =
+                    near.fine_label([c[0] * s + x, c[1] * s + y, c[2] * s + z], s);
             }
         }
     }
+    let offsets = octant_offsets([1, w, w * w]);
+    for lw in 0..=s {
+        for lv in 0..=s {
+            for lu in 0..=s {
+                // octant 0 of local lattice point (lu, lv, lw) is block cell (lu-1, lv-1, lw-1)
+                let base = lu as usize + w * (lv as usize + w * lw as usize);
+                let c0 = block[base];
+                let mut oct = [c0; 8];
+                let mut uniform = true;
+                for o in 1..8 {
+                    oct[o] = block[base + offsets[o]];
+                    uniform &= oct[o] == c0;
+                }
+                if uniform || !owns(&near, [lu, lv, lw], s) {
+                    continue;
+                }
+                let p = [c[0] * s + lu, c[1] * s + lv, c[2] * s + lw];
+                fine_vertex(ctx, part, &near, &oct, p, table, ltable);
+            }
+        }
+    }
+}
+
+/// Emits the polygons and junction chords of fine grid vertex `p`.
+fn fine_vertex(
+    ctx: &Ctx,
+    part: &mut Part,
+    near: &Near,
+    oct: &[LabelId; 8],
+    p: [i32; 3],
+    table: &StarTable,
+    ltable: &LTable,
+) {
+    let s = ctx.lat.s;
+    let vert = Vertex {
+        lattice: ctx.lat.of_fine_vertex(p),
+        half: half_edges(near, p, s),
+    };
+    // slot in `near` of the coarse cell holding each octant's fine cell
+    let local = [0, 1, 2].map(|ax| p[ax] - near.cell[ax] * s);
+    let side = |q: i32| {
+        if q < 0 {
+            0
+        } else if q >= s {
+            2
+        } else {
+            1
+        }
+    };
+    let lo_hi = local.map(|l| [side(l - 1), side(l)]);
+    let slots: [usize; 8] = std::array::from_fn(|o| {
+        lo_hi[0][o & 1] + 3 * (lo_hi[1][(o >> 1) & 1] + 3 * lo_hi[2][(o >> 2) & 1])
+    });
+    let mut seen = 0u8;
+    for o in 0..8 {
+        if seen >> o & 1 == 1 {
+            continue;
+        }
+        let l = oct[o];
+        let mask = mask_of(oct, l);
+        seen |= mask;
+        let star: &MaskStar = table.get(mask);
+        for cy in 0..star.cycles as usize {
+            let mut steps = [Step {
+                point: (0, DVec3::ZERO),
+                neighbour: 0,
+                in_edge: 0,
+                out_edge: 0,
+            }; 12];
+            let mut n = 0;
+            let mut all_fine = true;
+            for st in star.cycle(cy) {
+                let step = fine_step(ctx, near, oct, mask, p, &slots, st);
+                all_fine &= step.point.0 & TAG_MASK == TAG_KEY;
+                // consecutive quarter-faces of one coarse face: one support point
+                if n > 0 && steps[n - 1].point.0 == step.point.0 {
+                    steps[n - 1].out_edge = step.out_edge;
+                } else {
+                    steps[n] = step;
+                    n += 1;
+                }
+            }
+            if n > 1 && steps[n - 1].point.0 == steps[0].point.0 {
+                steps[0].in_edge = steps[n - 1].in_edge;
+                n -= 1;
+            }
+            // only fine faces: the cycle has the unit geometry of its mask, scaled
+            let lt = (all_fine && star.cycles == 1).then(|| &ltable.tris[mask as usize][..]);
+            emit_cycle(ctx, part, l, &steps[..n], &vert, lt);
+        }
+    }
+    emit_chords(ctx, part, oct, &vert);
 }
 
 /// Half-lengths (lattice units) of the six half-edges at fine vertex `p`: an
@@ -590,23 +648,17 @@ fn fine_step(
     oct: &[LabelId; 8],
     mask: u8,
     p: [i32; 3],
+    slots: &[usize; 8],
     st: &CycleStep,
 ) -> Step {
-    let s = ctx.lat.s;
     let f = st.face as usize;
     let (lo, hi) = face_octants(f);
     let other = if mask >> lo & 1 == 1 { hi } else { lo };
     let a = face_axis(f);
-    let cell_of = |o: usize| {
-        [
-            p[0] - 1 + (o & 1) as i32,
-            p[1] - 1 + ((o >> 1) & 1) as i32,
-            p[2] - 1 + ((o >> 2) & 1) as i32,
-        ]
-    };
-    let (fa, fb) = (cell_of(lo), cell_of(hi));
-    let (ca, cb) = (fa.map(|x| x.div_euclid(s)), fb.map(|x| x.div_euclid(s)));
-    let point = if ca != cb && !near.refined(ca) && !near.refined(cb) {
+    let (sa, sb) = (slots[lo], slots[hi]);
+    let cb = near.cell_at(sb);
+    let fb = [0, 1, 2].map(|ax| p[ax] - 1 + ((hi >> ax) & 1) as i32);
+    let point = if sa != sb && near.sub[sa].is_none() && near.sub[sb].is_none() {
         let grid = ctx.rv.grid();
         let i = grid.padded_index(
             (cb[0] + 1) as usize,

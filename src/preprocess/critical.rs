@@ -197,7 +197,6 @@ fn scan_plane(
     separation: &SeparationTable,
     _n: usize,
 ) -> PlaneResult {
-    let dims = grid.dims();
     let data = grid.data();
     let [sx, sy, sz] = grid.strides();
     let offsets = [0, sx, sy, sx + sy, sz, sz + sx, sz + sy, sz + sy + sx];
@@ -205,23 +204,19 @@ fn scan_plane(
         elements: Vec::new(),
         counts: Vec::new(),
     };
-    for j in 0..=dims.ny as i32 {
-        // vertex (i, j, k) has padded cell (i, j, k) as its octant 0
-        let row = grid.padded_index(0, j as usize, k as usize);
-        for i in 0..=dims.nx as i32 {
-            let base = row + i as usize;
-            let c0 = data[base];
-            let mut c = [c0; 8];
-            let mut uniform = true;
-            for o in 1..8 {
-                c[o] = data[base + offsets[o]];
-                uniform &= c[o] == c0;
-            }
-            if uniform {
-                continue;
-            }
-            scan_vertex(&c, [i, j, k], rank, separation, &mut out);
+    // vertex (i, j, k) has padded cell (i, j, k) as its octant 0
+    for (i, j, base) in grid.candidates_in_plane(k as usize) {
+        let c0 = data[base];
+        let mut c = [c0; 8];
+        let mut uniform = true;
+        for o in 1..8 {
+            c[o] = data[base + offsets[o]];
+            uniform &= c[o] == c0;
         }
+        if uniform {
+            continue;
+        }
+        scan_vertex(&c, [i, j, k], rank, separation, &mut out);
     }
     out
 }

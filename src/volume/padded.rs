@@ -18,6 +18,7 @@ pub struct PaddedLabels {
     pdims: [usize; 3],
     data: Vec<LabelId>,
     outside: LabelId,
+    candidates: std::sync::OnceLock<Vec<u64>>,
 }
 
 impl PaddedLabels {
@@ -46,6 +47,7 @@ impl PaddedLabels {
             pdims,
             data,
             outside,
+            candidates: std::sync::OnceLock::new(),
         }
     }
 
@@ -106,6 +108,80 @@ impl PaddedLabels {
         }
     }
 
+    /// Grid vertices whose 8 cells may hold more than one label: one bit per
+    /// padded index `b`, where vertex (i, j, k) has `b` = padded index of
+    /// (i, j, k) (its octant-0 cell). A superset of the non-uniform vertices,
+    /// computed once (in parallel, 64 cells per word) and cached; scanning its
+    /// set bits skips the uniform bulk of a volume.
+    pub fn vertex_candidates(&self) -> &[u64] {
+        self.candidates.get_or_init(|| self.compute_candidates())
+    }
+
+    /// Candidate vertices (see [`Self::vertex_candidates`]) of vertex plane `k`,
+    /// as `(i, j, b)` with `b` the padded index of octant 0, in (j, i) order.
+    pub fn candidates_in_plane(&self, k: usize) -> impl Iterator<Item = (i32, i32, usize)> + '_ {
+        let bits = self.vertex_candidates();
+        let (nx, ny) = (self.dims.nx, self.dims.ny);
+        let first = self.padded_index(0, 0, k);
+        let last = self.padded_index(nx, ny, k);
+        let pd0 = self.pdims[0];
+        (first / 64..=last / 64).flat_map(move |w| {
+            let mut word = bits[w];
+            if w == first / 64 {
+                word &= !0u64 << (first % 64);
+            }
+            if w == last / 64 && last % 64 < 63 {
+                word &= (1u64 << (last % 64 + 1)) - 1;
+            }
+            std::iter::from_fn(move || {
+                while word != 0 {
+                    let b = w * 64 + word.trailing_zeros() as usize;
+                    word &= word - 1;
+                    let r = b - first;
+                    let (i, j) = (r % pd0, r / pd0);
+                    if i <= nx && j <= ny {
+                        return Some((i as i32, j as i32, b));
+                    }
+                }
+                None
+            })
+        })
+    }
+
+    fn compute_candidates(&self) -> Vec<u64> {
+        let n = self.data.len();
+        let [sx, sy, sz] = self.strides();
+        let words = n.div_ceil(64);
+        let data = &self.data;
+        // D: the cell differs from a +x, +y or +z neighbour
+        let differs: Vec<u64> = (0..words)
+            .into_par_iter()
+            .map(|w| {
+                let mut word = 0u64;
+                let start = w * 64;
+                let end = (start + 64).min(n.saturating_sub(sz + sy + sx));
+                for i in start..end {
+                    let c = data[i];
+                    if c != data[i + sx] || c != data[i + sy] || c != data[i + sz] {
+                        word |= 1 << (i - start);
+                    }
+                }
+                word
+            })
+            .collect();
+        // a vertex is a candidate when one of its 7 low cells differs: OR of D
+        // shifted down by each of the 7 octant offsets
+        let offsets = [0, sx, sy, sx + sy, sz, sz + sx, sz + sy];
+        (0..words)
+            .into_par_iter()
+            .map(|w| {
+                offsets
+                    .iter()
+                    .fold(0u64, |acc, &off| acc | shifted_word(&differs, w, off))
+            })
+            .collect()
+    }
+
     /// Labels of the 8 cells around grid vertex (i, j, k), in octant order
     /// (bit 0 = +x side, bit 1 = +y, bit 2 = +z). Vertices beyond the grid see
     /// the outside label.
@@ -121,6 +197,19 @@ impl PaddedLabels {
         }
         out
     }
+}
+
+/// Word `w` of the bitset `bits` shifted toward lower indices by `off` bits
+/// (bit b of the result = bit b + off of `bits`).
+#[inline]
+fn shifted_word(bits: &[u64], w: usize, off: usize) -> u64 {
+    let (q, r) = (w + off / 64, off % 64);
+    let lo = bits.get(q).copied().unwrap_or(0);
+    if r == 0 {
+        return lo;
+    }
+    let hi = bits.get(q + 1).copied().unwrap_or(0);
+    (lo >> r) | (hi << (64 - r))
 }
 
 #[cfg(test)]
@@ -142,5 +231,34 @@ mod tests {
         let o = p.vertex_octants(0, 0, 0);
         assert_eq!(o[7], v.id_at(0, 0, 0));
         assert!(o[..7].iter().all(|&l| l == 9));
+    }
+
+    #[test]
+    fn candidates_cover_every_non_uniform_vertex() {
+        let dims = Dims::new(9, 7, 5).unwrap();
+        let values: Vec<i64> = (0..dims.len() as i64)
+            .map(|i| ((i * 7919) % 13 == 0) as i64 + ((i * 31) % 17 == 0) as i64)
+            .collect();
+        let v = LabelVolume::from_values(dims, &values, Geometry::identity()).unwrap();
+        let p = PaddedLabels::new(&v, 0);
+        let bits = p.vertex_candidates();
+        let mut candidates = 0;
+        for k in 0..=dims.nz as i32 {
+            for j in 0..=dims.ny as i32 {
+                for i in 0..=dims.nx as i32 {
+                    let o = p.vertex_octants(i, j, k);
+                    let b = p.padded_index(i as usize, j as usize, k as usize);
+                    let set = bits[b / 64] >> (b % 64) & 1 == 1;
+                    candidates += set as usize;
+                    if o.iter().any(|&l| l != o[0]) {
+                        assert!(
+                            set,
+                            "vertex ({i},{j},{k}) is not uniform but not a candidate"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(candidates < (dims.nx + 1) * (dims.ny + 1) * (dims.nz + 1));
     }
 }
