@@ -569,8 +569,8 @@ mod tests {
                         assert_eq!(c[k].out_edge, c[(k + 1) % c.len()].in_edge);
                     }
                 }
-                for f in 0..12 {
-                    assert_eq!(seen[f] as usize, is_boundary(m, f) as usize);
+                for (f, &n) in seen.iter().enumerate() {
+                    assert_eq!(n as usize, is_boundary(m, f) as usize);
                 }
             }
         }

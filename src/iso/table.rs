@@ -24,16 +24,20 @@
 //! completeness) but their cycles have no listed type.
 //!
 //! **L triangulation.** Each cycle is cut into N − 2 triangles on its own points
-//! (no extra point): the diagonals of the minimum-area triangulation of the
-//! cycle's undisplaced support points (the face centres). Ties (planar cycles)
-//! go to the lowest split index, so the table is deterministic.
+//! (no extra point): the minimum-area triangulation of the cycle's undisplaced
+//! support points (the face centres) among those that respect how the two ends
+//! of an ambiguous edge share the diagonals between its four faces (see
+//! `l_triangles`). Ties (planar cycles) go to the lowest split index, so the
+//! table is deterministic.
 
 use std::sync::OnceLock;
 
 use glam::DVec3;
 
-use crate::extract::min_area_triangulation;
-use crate::star::{MAX_CYCLE, ambiguous_edges, face_center_offset, trace_per_edge};
+use crate::extract::is_degenerate;
+use crate::star::{
+    MAX_CYCLE, ambiguous_edges, edge_star, face_axis, face_center_offset, trace_per_edge,
+};
 
 /// Type id of cycles that only unrealizable mixed configurations produce.
 pub(crate) const NO_TYPE: u8 = u8::MAX;
@@ -237,13 +241,101 @@ fn is_planar(cycle: &[u8]) -> bool {
     p.iter().all(|q| (*q - p[0]).dot(n).abs() < 1e-12)
 }
 
-/// L triangles of one cycle (as quarter-face ids).
-fn l_triangles(cycle: &[u8]) -> Vec<[u8; 3]> {
+/// L triangles of one cycle (as quarter-face ids) at a vertex with the given
+/// ambiguous half-edges.
+///
+/// The four faces around an ambiguous edge lie in the stars of both ends of
+/// the edge, and a cycle at either end may pass through all four (always when
+/// the edge is joined; when it is separated, if the two voxels meet elsewhere
+/// in the cell). If both ends used the same diagonal between two of them, that
+/// diagonal would carry four triangles; if both ends had a triangle on three
+/// of them (they are coplanar), the two would overlap. So the two ends share
+/// the six segments between the four faces: the four sides of the ring
+/// around the edge (faces of different axes) belong to the upper end (the
+/// vertex where the half-edge points to −axis), the two segments across the
+/// edge (faces of the same axis) to the lower end; a cycle may use its own
+/// sides and, as diagonals, only the segments its end owns. A triangle on
+/// three of the faces would need one segment of each kind, so neither end
+/// has one. Every cycle of every configuration mixed mode can produce still
+/// has a triangulation (checked when the table is built; a unit test covers
+/// it); the unrealizable ones fall back to the unconstrained minimum.
+fn l_triangles(cycle: &[u8], ambiguous: u8) -> Vec<[u8; 3]> {
     let pts: Vec<DVec3> = cycle.iter().map(|&f| face_point(f as usize)).collect();
-    let tris =
-        min_area_triangulation(&pts).expect("cell cycles have a non-degenerate triangulation");
+    let n = cycle.len();
+    let owned_elsewhere = |a: usize, b: usize| {
+        (0..6).any(|e| {
+            let (_, faces) = edge_star(e);
+            if ambiguous >> e & 1 == 0 || !faces.contains(&a) || !faces.contains(&b) {
+                return false;
+            }
+            let across = face_axis(a) == face_axis(b);
+            let lower_end = e & 1 == 1;
+            across != lower_end
+        })
+    };
+    let allowed = |i: usize, j: usize| {
+        let side = (i + 1) % n == j || (j + 1) % n == i;
+        side || !owned_elsewhere(cycle[i] as usize, cycle[j] as usize)
+    };
+    let tris = constrained_min_area(&pts, allowed)
+        .or_else(|| constrained_min_area(&pts, |_, _| true))
+        .expect("a cell cycle has a non-degenerate triangulation");
     tris.into_iter().map(|t| t.map(|i| cycle[i])).collect()
 }
+
+/// Minimum-area triangulation of a closed polygon without degenerate
+/// triangles that uses only allowed diagonals (dynamic programming over the
+/// polygon; ties go to the lowest split index). `None` if there is none.
+fn constrained_min_area(
+    p: &[DVec3],
+    allowed: impl Fn(usize, usize) -> bool,
+) -> Option<Vec<[usize; 3]>> {
+    let n = p.len();
+    let mut cost = vec![f64::INFINITY; n * n];
+    let mut split = vec![usize::MAX; n * n];
+    for i in 0..n - 1 {
+        cost[i * n + i + 1] = 0.0;
+    }
+    for len in 2..n {
+        for i in 0..n - len {
+            let j = i + len;
+            if !allowed(i, j) {
+                continue;
+            }
+            for k in i + 1..j {
+                if is_degenerate(p[i], p[k], p[j]) {
+                    continue;
+                }
+                let area = 0.5 * (p[k] - p[i]).cross(p[j] - p[i]).length();
+                let c = cost[i * n + k] + cost[k * n + j] + area;
+                if c < cost[i * n + j] - 1e-12 {
+                    cost[i * n + j] = c;
+                    split[i * n + j] = k;
+                }
+            }
+        }
+    }
+    if !cost[n - 1].is_finite() {
+        return None;
+    }
+    let mut out = Vec::with_capacity(n - 2);
+    let mut stack = vec![(0, n - 1)];
+    while let Some((i, j)) = stack.pop() {
+        if j - i < 2 {
+            continue;
+        }
+        let k = split[i * n + j];
+        out.push([i, k, j]);
+        stack.push((i, k));
+        stack.push((k, j));
+    }
+    out.sort_unstable();
+    Some(out)
+}
+
+/// A cycle type while the table is built: length, canonical form, example
+/// mask and connect set, planar, seen in a global mode.
+type Form = (usize, Vec<[i32; 3]>, u8, u8, bool, bool);
 
 fn build() -> Table {
     // Canonical configurations first: connect ⊆ ambiguous edges.
@@ -262,7 +354,7 @@ fn build() -> Table {
         }
     }
     // Types: distinct canonical forms, sorted by length then form.
-    let mut forms: Vec<(usize, Vec<[i32; 3]>, u8, u8, bool, bool)> = Vec::new();
+    let mut forms: Vec<Form> = Vec::new();
     for (mask, connect, cycles) in raw.iter().filter(|r| realizable(r.0, r.1)) {
         let global = *connect == 0 || *connect == ambiguous_edges(*mask);
         for c in cycles {
@@ -308,7 +400,7 @@ fn build() -> Table {
                 .iter()
                 .position(|f| f.1 == form)
                 .map_or(NO_TYPE, |t| t as u8);
-            for t in l_triangles(c) {
+            for t in l_triangles(c, ambiguous_edges(*mask)) {
                 e.tris[nt] = t;
                 nt += 1;
             }
@@ -331,7 +423,6 @@ fn build() -> Table {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::star::edge_star;
 
     #[test]
     fn fourteen_types_nine_global() {
@@ -394,6 +485,41 @@ mod tests {
                         seen[connect as usize],
                         "mask {mask:08b} connect {connect:06b}"
                     );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn ambiguous_edges_never_force_the_unconstrained_fallback() {
+        for mask in 0..=255u8 {
+            let amb = ambiguous_edges(mask);
+            for connect in (0..64u8).filter(|&c| c & !amb == 0 && realizable(mask, c)) {
+                let star = trace_per_edge(mask, connect);
+                for i in 0..star.cycles as usize {
+                    let c: Vec<u8> = star.cycle(i).iter().map(|s| s.face).collect();
+                    let tris = l_triangles(&c, amb);
+                    // no segment between two faces of an ambiguous edge is used as
+                    // a diagonal by the wrong end
+                    for t in &tris {
+                        for k in 0..3 {
+                            let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+                            let pa = c.iter().position(|&f| f as usize == a).unwrap();
+                            let pb = c.iter().position(|&f| f as usize == b).unwrap();
+                            let side = (pa + 1) % c.len() == pb || (pb + 1) % c.len() == pa;
+                            for e in (0..6).filter(|e| amb >> e & 1 == 1) {
+                                let (_, faces) = edge_star(e);
+                                if !side && faces.contains(&a) && faces.contains(&b) {
+                                    let across = face_axis(a) == face_axis(b);
+                                    assert_eq!(
+                                        across,
+                                        e & 1 == 1,
+                                        "mask {mask:08b} connect {connect:06b}"
+                                    );
+                                }
+                            }
+                        }
+                    }
                 }
             }
         }
