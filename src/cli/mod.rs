@@ -7,6 +7,7 @@ mod check;
 mod extract;
 mod info;
 mod inspect;
+mod iso;
 mod phantom;
 mod ui;
 
@@ -63,6 +64,8 @@ enum Command {
     Extract(extract::ExtractArgs),
     /// Validate a mesh (PLY with label_a/label_b face properties) against septa's invariants.
     Check(check::CheckArgs),
+    /// VESTA iso-surface of a grayscale volume (CT, MR, simulation data), with N-cycle statistics.
+    Iso(iso::IsoArgs),
 }
 
 /// Reading a volume: the file, an optional config, and the description of raw files.
@@ -170,6 +173,7 @@ pub fn main() -> ExitCode {
         Command::Inspect(a) => inspect::run(a, &ui),
         Command::Extract(a) => extract::run(a, &ui),
         Command::Check(a) => check::run(a, &ui),
+        Command::Iso(a) => iso::run(a, &ui),
     };
     match result {
         Ok(code) => code,

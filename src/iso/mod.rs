@@ -113,6 +113,14 @@ pub struct IsoOptions {
 }
 
 impl IsoOptions {
+    /// An error if the options cannot be used (a NaN iso value).
+    pub fn check(&self) -> Result<()> {
+        if self.iso.is_nan() {
+            return Err(Error::invalid("the iso value is NaN"));
+        }
+        Ok(())
+    }
+
     /// Mixed mode, L decomposition, displaced points.
     pub fn new(iso: f64) -> Self {
         IsoOptions {
@@ -158,7 +166,7 @@ pub fn iso_surface<T: Scalar>(
     opts: &IsoOptions,
 ) -> Result<IsoSurface> {
     let start = Instant::now();
-    check_options(opts)?;
+    opts.check()?;
     if values.len() != dims.len() {
         return Err(Error::invalid(format!(
             "{} samples for {} × {} × {} voxels",
@@ -213,13 +221,6 @@ pub fn iso_surface_image(image: &Image, opts: &IsoOptions) -> Result<IsoSurface>
         Error::Invalid(m) => Error::input(&image.path, m),
         other => other,
     })
-}
-
-pub(crate) fn check_options(opts: &IsoOptions) -> Result<()> {
-    if opts.iso.is_nan() {
-        return Err(Error::invalid("the iso value is NaN"));
-    }
-    Ok(())
 }
 
 /// The two labels of an iso-surface mesh.

@@ -74,7 +74,7 @@ impl IsoStats {
         rows.push(("cycle sum".into(), self.cycle_sum().to_string()));
         rows.push(("points".into(), self.points.to_string()));
         rows.push(("triangles".into(), self.triangles.to_string()));
-        rows.push(("time [s]".into(), format!("{:.3}", self.seconds)));
+        rows.push(("time".into(), format!("{:.3} s", self.seconds)));
         rows
     }
 }

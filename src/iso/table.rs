@@ -158,64 +158,77 @@ pub(crate) fn face_point(f: usize) -> DVec3 {
     DVec3::new(o[0] as f64, o[1] as f64, o[2] as f64) * 0.5
 }
 
-/// Canonical form of a cycle under the 24 rotations of the cube, the choice of
-/// start and reversal: the smallest sequence of rotated face-centre offsets.
-fn canonical(cycle: &[u8]) -> Vec<[i32; 3]> {
-    let pts: Vec<[i32; 3]> = cycle
-        .iter()
-        .map(|&f| face_center_offset(f as usize))
-        .collect();
-    let n = pts.len();
-    let perms = [
-        [0, 1, 2],
-        [0, 2, 1],
-        [1, 0, 2],
-        [1, 2, 0],
-        [2, 0, 1],
-        [2, 1, 0],
-    ];
-    // parity of each permutation above: +1 even, −1 odd
-    let parity = [1, -1, -1, 1, 1, -1];
-    let mut best: Option<Vec<[i32; 3]>> = None;
-    for (p, par) in perms.into_iter().zip(parity) {
-        for signs in 0..8u32 {
-            let det = if signs.count_ones() % 2 == 1 {
-                -par
-            } else {
-                par
-            };
-            if det < 0 {
-                continue;
-            }
-            let t: Vec<[i32; 3]> = pts
-                .iter()
-                .map(|q| {
-                    [0, 1, 2].map(|a| {
-                        let s = if signs >> a & 1 == 1 { -1 } else { 1 };
-                        s * q[p[a]]
-                    })
-                })
-                .collect();
-            for rev in [false, true] {
-                for start in 0..n {
-                    let seq: Vec<[i32; 3]> = (0..n)
-                        .map(|k| {
-                            let i = if rev {
-                                (start + n - k) % n
-                            } else {
-                                (start + k) % n
-                            };
-                            t[i]
-                        })
-                        .collect();
-                    if best.as_ref().is_none_or(|b| seq < *b) {
-                        best = Some(seq);
-                    }
+/// Canonical form of a cycle: the smallest sequence of face ids over the 24
+/// rotations of the cube (which permute the 12 quarter-faces), the choice of
+/// start and reversal. Unused entries are `u8::MAX`.
+type Canonical = [u8; MAX_CYCLE];
+
+fn canonical(cycle: &[u8]) -> Canonical {
+    let n = cycle.len();
+    let mut best = [u8::MAX; MAX_CYCLE];
+    let mut first = true;
+    for rot in rotations() {
+        for rev in [false, true] {
+            for start in 0..n {
+                let mut seq = [u8::MAX; MAX_CYCLE];
+                for (k, s) in seq.iter_mut().enumerate().take(n) {
+                    let i = if rev {
+                        (start + n - k) % n
+                    } else {
+                        (start + k) % n
+                    };
+                    *s = rot[cycle[i] as usize];
+                }
+                if first || seq < best {
+                    best = seq;
+                    first = false;
                 }
             }
         }
     }
-    best.unwrap_or_default()
+    best
+}
+
+/// The 24 rotations of the cube as permutations of the quarter-faces.
+fn rotations() -> &'static [[u8; 12]] {
+    static R: OnceLock<Vec<[u8; 12]>> = OnceLock::new();
+    R.get_or_init(|| {
+        let perms = [
+            [0, 1, 2],
+            [0, 2, 1],
+            [1, 0, 2],
+            [1, 2, 0],
+            [2, 0, 1],
+            [2, 1, 0],
+        ];
+        // parity of each permutation above: +1 even, −1 odd
+        let parity = [1, -1, -1, 1, 1, -1];
+        let mut out = Vec::with_capacity(24);
+        for (p, par) in perms.into_iter().zip(parity) {
+            for signs in 0..8u32 {
+                let flips = if signs.count_ones() % 2 == 1 { -1 } else { 1 };
+                if par * flips < 0 {
+                    continue;
+                }
+                let mut map = [0u8; 12];
+                for (f, m) in map.iter_mut().enumerate() {
+                    let c = face_center_offset(f);
+                    let r = [0, 1, 2].map(|a| {
+                        if signs >> a & 1 == 1 {
+                            -c[p[a]]
+                        } else {
+                            c[p[a]]
+                        }
+                    });
+                    *m = (0..12)
+                        .find(|&g| face_center_offset(g) == r)
+                        .expect("rotations map faces to faces") as u8;
+                }
+                out.push(map);
+            }
+        }
+        out
+    })
 }
 
 /// Whether mixed mode can produce this choice of joined edges: the means of
@@ -335,38 +348,78 @@ fn constrained_min_area(
 
 /// A cycle type while the table is built: length, canonical form, example
 /// mask and connect set, planar, seen in a global mode.
-type Form = (usize, Vec<[i32; 3]>, u8, u8, bool, bool);
+type Form = (usize, Canonical, u8, u8, bool, bool);
+
+/// One configuration with its cycles (faces and canonical form).
+struct Config {
+    mask: u8,
+    connect: u8,
+    cycles: Vec<(Vec<u8>, Canonical)>,
+}
 
 fn build() -> Table {
-    // Canonical configurations first: connect ⊆ ambiguous edges.
-    let mut raw: Vec<(u8, u8, Vec<Vec<u8>>)> = Vec::new();
+    let raw = configurations();
+    let forms = collect_forms(&raw);
+    let types = name_types(&forms);
+    let mut canonical_entries = vec![CellEntry::default(); 256 * 64];
+    for c in &raw {
+        canonical_entries[(c.mask as usize) << 6 | c.connect as usize] = make_entry(c, &forms);
+    }
+    // Non-canonical connect sets copy the entry of their ambiguous part.
+    let entries = (0..256 * 64)
+        .map(|i| {
+            let mask = (i >> 6) as u8;
+            let connect = (i & 63) as u8 & ambiguous_edges(mask);
+            canonical_entries[(mask as usize) << 6 | connect as usize]
+        })
+        .collect();
+    Table { entries, types }
+}
+
+/// Every mask with every joining set of its ambiguous edges, traced.
+fn configurations() -> Vec<Config> {
+    let mut forms: std::collections::HashMap<Vec<u8>, Canonical> = Default::default();
+    let mut raw = Vec::new();
     for mask in 0..=255u8 {
         let amb = ambiguous_edges(mask);
-        for connect in 0..64u8 {
-            if connect & !amb != 0 {
-                continue;
-            }
+        for connect in (0..64u8).filter(|c| c & !amb == 0) {
             let star = trace_per_edge(mask, connect);
             let cycles = (0..star.cycles as usize)
-                .map(|i| star.cycle(i).iter().map(|s| s.face).collect())
+                .map(|i| {
+                    let c: Vec<u8> = star.cycle(i).iter().map(|s| s.face).collect();
+                    let form = *forms.entry(c.clone()).or_insert_with(|| canonical(&c));
+                    (c, form)
+                })
                 .collect();
-            raw.push((mask, connect, cycles));
+            raw.push(Config {
+                mask,
+                connect,
+                cycles,
+            });
         }
     }
-    // Types: distinct canonical forms, sorted by length then form.
+    raw
+}
+
+/// The distinct forms of realizable configurations, sorted by length then form.
+fn collect_forms(raw: &[Config]) -> Vec<Form> {
     let mut forms: Vec<Form> = Vec::new();
-    for (mask, connect, cycles) in raw.iter().filter(|r| realizable(r.0, r.1)) {
-        let global = *connect == 0 || *connect == ambiguous_edges(*mask);
-        for c in cycles {
-            let form = canonical(c);
-            match forms.iter_mut().find(|f| f.1 == form) {
+    for cfg in raw.iter().filter(|c| realizable(c.mask, c.connect)) {
+        let global = cfg.connect == 0 || cfg.connect == ambiguous_edges(cfg.mask);
+        for (c, form) in &cfg.cycles {
+            match forms.iter_mut().find(|f| f.1 == *form) {
                 Some(f) => f.5 |= global,
-                None => forms.push((c.len(), form, *mask, *connect, is_planar(c), global)),
+                None => forms.push((c.len(), *form, cfg.mask, cfg.connect, is_planar(c), global)),
             }
         }
     }
     forms.sort_by(|a, b| (a.0, &a.1).cmp(&(b.0, &b.1)));
-    let types: Vec<CycleType> = forms
+    forms
+}
+
+/// Types with names: the length, plus a letter where several share it.
+fn name_types(forms: &[Form]) -> Vec<CycleType> {
+    forms
         .iter()
         .enumerate()
         .map(|(i, f)| {
@@ -386,43 +439,50 @@ fn build() -> Table {
                 example_connect: f.3,
             }
         })
-        .collect();
-    let mut canonical_entries = vec![CellEntry::default(); 256 * 64];
-    for (mask, connect, cycles) in &raw {
-        let mut e = CellEntry::default();
-        let (mut nf, mut nt) = (0usize, 0usize);
-        for (i, c) in cycles.iter().enumerate() {
-            e.faces[nf..nf + c.len()].copy_from_slice(c);
-            nf += c.len();
-            e.ends[i] = nf as u8;
-            let form = canonical(c);
-            e.types[i] = forms
-                .iter()
-                .position(|f| f.1 == form)
-                .map_or(NO_TYPE, |t| t as u8);
-            for t in l_triangles(c, ambiguous_edges(*mask)) {
-                e.tris[nt] = t;
-                nt += 1;
-            }
-            e.tri_ends[i] = nt as u8;
+        .collect()
+}
+
+/// The table entry of one configuration.
+fn make_entry(cfg: &Config, forms: &[Form]) -> CellEntry {
+    let mut e = CellEntry::default();
+    let (mut nf, mut nt) = (0usize, 0usize);
+    for (i, (c, form)) in cfg.cycles.iter().enumerate() {
+        e.faces[nf..nf + c.len()].copy_from_slice(c);
+        nf += c.len();
+        e.ends[i] = nf as u8;
+        e.types[i] = forms
+            .iter()
+            .position(|f| f.1 == *form)
+            .map_or(NO_TYPE, |t| t as u8);
+        for t in l_triangles(c, ambiguous_edges(cfg.mask)) {
+            e.tris[nt] = t;
+            nt += 1;
         }
-        e.cycles = cycles.len() as u8;
-        canonical_entries[(*mask as usize) << 6 | *connect as usize] = e;
+        e.tri_ends[i] = nt as u8;
     }
-    // Non-canonical connect sets copy the entry of their ambiguous part.
-    let entries = (0..256 * 64)
-        .map(|i| {
-            let mask = (i >> 6) as u8;
-            let connect = (i & 63) as u8 & ambiguous_edges(mask);
-            canonical_entries[(mask as usize) << 6 | connect as usize]
-        })
-        .collect();
-    Table { entries, types }
+    e.cycles = cfg.cycles.len() as u8;
+    e
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rotations_are_the_24_proper_symmetries() {
+        let r = rotations();
+        let mut distinct = r.to_vec();
+        distinct.sort();
+        distinct.dedup();
+        assert_eq!(distinct.len(), 24);
+        for map in r {
+            let mut seen = [false; 12];
+            for &f in map {
+                seen[f as usize] = true;
+            }
+            assert!(seen.iter().all(|&s| s));
+        }
+    }
 
     #[test]
     fn fourteen_types_nine_global() {

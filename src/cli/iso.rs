@@ -1,0 +1,378 @@
+//! `septa iso`: VESTA iso-surface of a grayscale volume, with the N-cycle
+//! statistics of the paper's Tables II–IV.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::{Args, ValueEnum};
+
+use super::ui::{Ui, count, secs, table};
+use super::{parse_dtype, parse_f64x3, parse_usize3, show};
+use septa::io::{DataType, ReadOptions, read_image};
+use septa::iso::{Decompose, IsoOptions, IsoSurface, Mode, cycle_types, iso_surface_image};
+use septa::mesh::validate::{Options, validate};
+use septa::{Error, Result};
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum ModeArg {
+    /// Two active voxels sharing only an edge stay apart.
+    Disconnect,
+    /// They are joined.
+    Connect,
+    /// Joined where the mean of the four voxels around the edge is ≥ iso.
+    Mixed,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum DecomposeArg {
+    /// No extra points: each N-cycle is triangulated on its own points.
+    L,
+    /// One extra point (the average) per N-cycle with N > 3, and a fan around it.
+    H,
+}
+
+#[derive(Args, Debug)]
+pub struct IsoArgs {
+    /// Grayscale volume (any sample type): .nii, .nii.gz, .hdr/.img, .nrrd, .nhdr,
+    /// .mha, .mhd, or raw with --dims/--dtype.
+    pub volume: PathBuf,
+    /// Iso value: voxels with value ≥ VALUE are inside.
+    #[arg(long, value_name = "VALUE", allow_negative_numbers = true)]
+    pub iso: f64,
+    /// How two inside voxels that share only an edge are treated.
+    #[arg(long, value_enum, default_value = "mixed", ignore_case = true)]
+    pub mode: ModeArg,
+    /// How N-cycles are cut into triangles (VESTA's L and H).
+    #[arg(long, value_enum, default_value = "l", ignore_case = true)]
+    pub decompose: DecomposeArg,
+    /// Keep support points at the voxel face centres (the binary VESTA surface)
+    /// instead of interpolating the iso value along each range vector.
+    #[arg(long)]
+    pub no_displace: bool,
+    /// Output mesh: .ply (with label_a = 0 inside, label_b = 1 outside), .obj,
+    /// .stl or .vtp. Normals point outward (from ≥ iso to < iso).
+    #[arg(short, long, value_name = "OUT")]
+    pub output: PathBuf,
+    /// Validate the mesh (closed, oriented, manifold, non-degenerate); exit
+    /// code 1 if it is not.
+    #[arg(long)]
+    pub check: bool,
+    /// Print the statistics as JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Raw files: extents along x, y, z (e.g. 256,256,128).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_usize3, help_heading = "Raw input")]
+    pub dims: Option<[usize; 3]>,
+    /// Raw files: sample type (uint8, int16, float32, ...).
+    #[arg(long, value_parser = parse_dtype, help_heading = "Raw input")]
+    pub dtype: Option<DataType>,
+    /// Raw files: voxel spacing in mm (default 1,1,1).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_f64x3, help_heading = "Raw input")]
+    pub spacing: Option<[f64; 3]>,
+    /// Raw files: samples are big-endian.
+    #[arg(long, help_heading = "Raw input")]
+    pub big_endian: bool,
+    /// Raw files: bytes to skip before the samples.
+    #[arg(long, default_value_t = 0, help_heading = "Raw input")]
+    pub header_bytes: u64,
+}
+
+impl IsoArgs {
+    fn read_options(&self) -> Result<ReadOptions> {
+        if self.dims.is_some() != self.dtype.is_some() {
+            return Err(Error::invalid("raw input needs both --dims and --dtype"));
+        }
+        Ok(ReadOptions {
+            dims: self.dims,
+            dtype: self.dtype,
+            spacing: self.spacing,
+            big_endian: self.big_endian,
+            header_bytes: self.header_bytes,
+        })
+    }
+
+    fn options(&self) -> IsoOptions {
+        IsoOptions {
+            iso: self.iso,
+            mode: match self.mode {
+                ModeArg::Disconnect => Mode::Disconnect,
+                ModeArg::Connect => Mode::Connect,
+                ModeArg::Mixed => Mode::Mixed,
+            },
+            decompose: match self.decompose {
+                DecomposeArg::L => Decompose::L,
+                DecomposeArg::H => Decompose::H,
+            },
+            displace: !self.no_displace,
+        }
+    }
+}
+
+pub fn run(args: &IsoArgs, ui: &Ui) -> Result<ExitCode> {
+    let opts = args.options();
+    opts.check()?;
+    refuse_input_as_output(&args.output, &args.volume)?;
+    let format = MeshFormat::of(&args.output)?;
+
+    let stage = ui.stage("reading volume");
+    let image = read_image(&args.volume, &args.read_options()?)?;
+    let t_read = stage.done();
+
+    let stage = ui.stage("extracting the iso-surface");
+    let s = iso_surface_image(&image, &opts)?;
+    let t_extract = stage.done();
+
+    let mut passed = true;
+    let mut t_check = None;
+    if args.check {
+        let stage = ui.stage("validating");
+        let report = validate(&s.mesh, &Options::default());
+        t_check = Some(stage.done());
+        passed = report.passed();
+        if !passed {
+            eprintln!("{}", report.summary().trim_end());
+        }
+    }
+
+    let stage = ui.stage("writing");
+    format.write(&args.output, &s.mesh)?;
+    let t_write = stage.done();
+
+    let range = if s.mesh.triangle_count() == 0 {
+        value_range(&image.to_f64())
+    } else {
+        None
+    };
+    let timings = Timings {
+        read: t_read,
+        extract: t_extract,
+        check: t_check,
+        write: t_write,
+    };
+    if args.json {
+        println!("{}", json_report(args, &image, &opts, &s, &timings, passed));
+    } else {
+        summarize(ui, args, &image, &opts, &s, &timings, range);
+    }
+    Ok(if passed {
+        ExitCode::SUCCESS
+    } else {
+        eprintln!(
+            "error: the iso-surface violates septa's invariants; please report this with the input volume"
+        );
+        ExitCode::from(1)
+    })
+}
+
+/// Stage times.
+struct Timings {
+    read: Duration,
+    extract: Duration,
+    check: Option<Duration>,
+    write: Duration,
+}
+
+/// Output formats by extension.
+#[derive(Clone, Copy)]
+enum MeshFormat {
+    Ply,
+    Obj,
+    Stl,
+    Vtp,
+}
+
+impl MeshFormat {
+    fn of(path: &Path) -> Result<Self> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        Ok(match ext.as_str() {
+            "ply" => MeshFormat::Ply,
+            "obj" => MeshFormat::Obj,
+            "stl" => MeshFormat::Stl,
+            "vtp" => MeshFormat::Vtp,
+            _ => {
+                return Err(Error::input(
+                    path,
+                    "unknown mesh format: use .ply, .obj, .stl or .vtp",
+                ));
+            }
+        })
+    }
+
+    fn write(self, path: &Path, mesh: &septa::mesh::InterfaceMesh) -> Result<()> {
+        use septa::io::mesh_formats as f;
+        match self {
+            MeshFormat::Ply => septa::io::mesh_ply::write_ply(path, mesh),
+            MeshFormat::Obj => f::write_obj(path, mesh),
+            MeshFormat::Stl => f::write_stl_label_surface(path, mesh, 0),
+            MeshFormat::Vtp => f::write_vtp(path, mesh, f::VtpEncoding::Base64),
+        }
+    }
+}
+
+/// Refuses to write over the input file.
+pub(super) fn refuse_input_as_output(output: &Path, input: &Path) -> Result<()> {
+    let same = match (output.canonicalize(), input.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => output == input,
+    };
+    if same {
+        return Err(Error::input(
+            output,
+            "is the input file; choose another output",
+        ));
+    }
+    Ok(())
+}
+
+/// Smallest and largest finite sample, for the message about an empty surface.
+fn value_range(v: &[f64]) -> Option<(f64, f64)> {
+    v.iter()
+        .filter(|x| x.is_finite())
+        .fold(None, |acc, &x| match acc {
+            None => Some((x, x)),
+            Some((lo, hi)) => Some((lo.min(x), hi.max(x))),
+        })
+}
+
+fn describe(opts: &IsoOptions) -> String {
+    format!(
+        "{}, {:?}, {}",
+        opts.mode.name(),
+        opts.decompose,
+        if opts.displace {
+            "displaced"
+        } else {
+            "not displaced"
+        }
+    )
+}
+
+fn summarize(
+    ui: &Ui,
+    args: &IsoArgs,
+    image: &septa::io::Image,
+    opts: &IsoOptions,
+    s: &IsoSurface,
+    t: &Timings,
+    range: Option<(f64, f64)>,
+) {
+    let st = &s.stats;
+    let n: usize = image.dims.iter().take(3).product();
+    ui.say(format!(
+        "septa iso {} --iso {} ({}) -> {}",
+        show(&args.volume),
+        opts.iso,
+        describe(opts),
+        show(&args.output)
+    ));
+    ui.say(format!(
+        "  {} × {} × {} voxels ({}), {} inside ({:.2} %)",
+        image.dims[0],
+        image.dims[1],
+        image.dims[2],
+        image.samples.dtype().name(),
+        count(st.active_voxels),
+        100.0 * st.active_voxels as f64 / n.max(1) as f64
+    ));
+    if s.mesh.triangle_count() == 0 {
+        let why = match range {
+            Some((lo, hi)) => format!("the values range from {lo} to {hi}"),
+            None => "the volume holds no finite value".into(),
+        };
+        ui.warn(format!(
+            "empty surface: no voxel has a value ≥ {} ({why}); wrote an empty mesh",
+            opts.iso
+        ));
+        return;
+    }
+    if st.active_voxels as usize == n {
+        ui.say("  every voxel is inside: the surface is the volume's box");
+    }
+    let rows: Vec<Vec<String>> = st
+        .table_rows()
+        .into_iter()
+        .map(|(k, v)| {
+            let v = v.parse::<u64>().map(count).unwrap_or(v);
+            vec![k, v]
+        })
+        .collect();
+    ui.say(table(&["", "count"], &rows));
+    if ui.verbose > 0 {
+        let types: Vec<Vec<String>> = cycle_types()
+            .iter()
+            .zip(&st.cycles_by_type)
+            .map(|(ty, &c)| {
+                vec![
+                    ty.name.clone(),
+                    count(c),
+                    if ty.planar { "planar" } else { "" }.into(),
+                    if ty.global { "" } else { "mixed only" }.into(),
+                ]
+            })
+            .collect();
+        ui.say(table(&["type", "cycles", "", ""], &types));
+    }
+    ui.say(format!(
+        "  read {}, extract {}{}, write {}",
+        secs(t.read),
+        secs(t.extract),
+        t.check
+            .map(|d| format!(", check {}", secs(d)))
+            .unwrap_or_default(),
+        secs(t.write)
+    ));
+}
+
+fn json_report(
+    args: &IsoArgs,
+    image: &septa::io::Image,
+    opts: &IsoOptions,
+    s: &IsoSurface,
+    t: &Timings,
+    passed: bool,
+) -> String {
+    let st = &s.stats;
+    let j = serde_json::json!({
+        "septa": env!("CARGO_PKG_VERSION"),
+        "input": {
+            "file": show(&args.volume),
+            "dims": &image.dims[..3],
+            "dtype": image.samples.dtype().name(),
+            "spacing_mm": image.geometry.spacing(),
+            "affine_lps": image.geometry.affine(),
+        },
+        "output": show(&args.output),
+        "parameters": {
+            "iso": opts.iso,
+            "mode": opts.mode.name(),
+            "decompose": format!("{:?}", opts.decompose),
+            "displace": opts.displace,
+        },
+        "empty": s.mesh.triangle_count() == 0,
+        "active_voxels": st.active_voxels,
+        "cycles": (3..=12).map(|n| (n.to_string(), serde_json::json!(st.cycles_by_length[n])))
+            .collect::<serde_json::Map<_, _>>(),
+        "cycle_sum": st.cycle_sum(),
+        "cycle_types": cycle_types().iter().zip(&st.cycles_by_type).map(|(ty, &c)| serde_json::json!({
+            "type": ty.name, "length": ty.length, "planar": ty.planar,
+            "global": ty.global, "cycles": c,
+        })).collect::<Vec<_>>(),
+        "points": st.points,
+        "support_points": st.support_points,
+        "centroids": st.centroids,
+        "triangles": st.triangles,
+        "valid": if args.check { serde_json::json!(passed) } else { serde_json::Value::Null },
+        "timings_s": {
+            "read": t.read.as_secs_f64(),
+            "extract": t.extract.as_secs_f64(),
+            "extract_internal": st.seconds,
+            "check": t.check.map(|d| d.as_secs_f64()),
+            "write": t.write.as_secs_f64(),
+        },
+    });
+    serde_json::to_string_pretty(&j).expect("json")
+}
