@@ -25,6 +25,7 @@ pub mod mesh;
 pub mod output;
 pub mod phantom;
 pub mod preprocess;
+pub mod remesh;
 pub mod star;
 pub mod volume;
 

@@ -208,6 +208,11 @@ pub(crate) fn chain_junctions(
             let next = if *a == v { *b } else { *a };
             verts.push(next);
             if next == from {
+                // a loop back to a corner stays open, with the corner at both
+                // ends, so that the corner is an end like at every other curve
+                if is_corner(from) {
+                    return (verts, false);
+                }
                 verts.pop();
                 return (verts, true);
             }

@@ -1,0 +1,3 @@
+//! Remeshing (work in progress).
+pub mod halfedge;
+pub mod network;
