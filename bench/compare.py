@@ -352,6 +352,10 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=HERE / "RESULTS.md", help="markdown output")
     ap.add_argument("--workdir", type=Path, help="keep volumes and meshes here (default: a temp dir, removed)")
     ap.add_argument("--no-venv", action="store_true", help="use this interpreter as is")
+    ap.add_argument("--septa-bin", type=Path,
+                    help="use this septa binary instead of building the work tree "
+                    "(e.g. one built from a clean `git archive HEAD`)")
+    ap.add_argument("--septa-rev", help="what to report as the binary's git revision (with --septa-bin)")
     args = ap.parse_args()
     if not args.no_venv and not in_venv():
         bootstrap()
@@ -359,7 +363,7 @@ def main() -> None:
     import nibabel as nib
     import numpy as np
 
-    exe = build_septa()
+    exe = args.septa_bin.resolve() if args.septa_bin else build_septa()
     vtk, smp = setup_vtk(args.threads)
     notes = check_vtk_conventions(vtk)
     sizes = [int(s) for s in args.sizes.split(",")]
@@ -374,7 +378,9 @@ def main() -> None:
         "python": platform.python_version(),
         "vtk": vtk.vtkVersion.GetVTKVersion(),
         "numpy": np.__version__,
-        "septa": f"{septa_version} (git {git_rev()})",
+        "septa": f"{septa_version} (git {args.septa_rev or git_rev()})"
+        + (f", binary {exe}" if args.septa_bin else ""),
+        "nice": os.nice(0),
         "vtk_smp": smp,
         "repeats": args.repeats,
         "load_start": loadavg(),
