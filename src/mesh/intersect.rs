@@ -91,6 +91,44 @@ impl Bvh {
         Bvh { nodes, items }
     }
 
+    /// The item nearest to `p`: `dist2(i)` gives the squared distance from `p`
+    /// to item `i`; boxes farther than the best so far are skipped. Returns the
+    /// item and its squared distance.
+    pub fn nearest(&self, p: DVec3, mut dist2: impl FnMut(u32) -> f64) -> Option<(u32, f64)> {
+        if self.items.is_empty() {
+            return None;
+        }
+        let box2 = |n: &Node| (n.lo - p).max(p - n.hi).max(DVec3::ZERO).length_squared();
+        let mut best: Option<(u32, f64)> = None;
+        let mut stack = vec![(0usize, box2(&self.nodes[0]))];
+        while let Some((ni, d)) = stack.pop() {
+            if best.is_some_and(|b| d >= b.1) {
+                continue;
+            }
+            let n = self.nodes[ni];
+            if n.count > 0 {
+                for &i in &self.items[n.start as usize..(n.start + n.count) as usize] {
+                    let di = dist2(i);
+                    if best.is_none_or(|b| di < b.1) {
+                        best = Some((i, di));
+                    }
+                }
+            } else {
+                let (l, r) = (n.start as usize, n.start as usize + 1);
+                let (dl, dr) = (box2(&self.nodes[l]), box2(&self.nodes[r]));
+                // visit the nearer child first (pushed last)
+                if dl < dr {
+                    stack.push((r, dr));
+                    stack.push((l, dl));
+                } else {
+                    stack.push((l, dl));
+                    stack.push((r, dr));
+                }
+            }
+        }
+        best
+    }
+
     /// Calls `f` with every item whose box overlaps `[lo, hi]`.
     pub fn query(&self, lo: DVec3, hi: DVec3, mut f: impl FnMut(u32)) {
         if self.items.is_empty() {
@@ -165,11 +203,22 @@ pub fn check_self_intersections(mesh: &InterfaceMesh) -> Check {
 
 /// Whether triangles `s` and `t` intersect beyond their shared vertices/edge.
 pub fn triangles_intersect(p: &[DVec3], s: [u32; 3], t: [u32; 3]) -> bool {
-    let shared: Vec<(usize, usize)> = (0..3)
-        .flat_map(|i| (0..3).filter(move |&j| s[i] == t[j]).map(move |j| (i, j)))
-        .collect();
+    let mut shared = [(0usize, 0usize); 3];
+    let mut n_shared = 0;
+    for i in 0..3 {
+        for j in 0..3 {
+            if s[i] == t[j] {
+                shared[n_shared] = (i, j);
+                n_shared += 1;
+            }
+        }
+    }
+    let shared = &shared[..n_shared];
     let sp = s.map(|v| p[v as usize]);
     let tp = t.map(|v| p[v as usize]);
+    if n_shared < 2 && (separated_by_plane(&sp, &tp) || separated_by_plane(&tp, &sp)) {
+        return false;
+    }
     match shared.len() {
         0 => disjoint_intersect(&sp, &tp),
         1 => {
@@ -203,6 +252,21 @@ pub fn triangles_intersect(p: &[DVec3], s: [u32; 3], t: [u32; 3]) -> bool {
         }
         _ => true,
     }
+}
+
+/// Whether all of `t` lies strictly on one side of the plane of `s` (then they
+/// cannot intersect; shared vertices lie on the plane and do not count).
+fn separated_by_plane(s: &[DVec3; 3], t: &[DVec3; 3]) -> bool {
+    let n = (s[1] - s[0]).cross(s[2] - s[0]);
+    let scale = n.length() * (t[0] - s[0]).length().max((t[1] - s[0]).length()).max((t[2] - s[0]).length());
+    let eps = 1e-12 * scale;
+    let d = t.map(|q| n.dot(q - s[0]));
+    let pos = d.iter().filter(|&&x| x > eps).count();
+    let neg = d.iter().filter(|&&x| x < -eps).count();
+    let zero = 3 - pos - neg;
+    // vertices on the plane may be shared ones: separated if the others agree and
+    // those on the plane are vertices of s
+    (pos + zero == 3 && pos > 0 || neg + zero == 3 && neg > 0) && (0..3).all(|k| d[k].abs() > eps || s.contains(&t[k]))
 }
 
 fn disjoint_intersect(s: &[DVec3; 3], t: &[DVec3; 3]) -> bool {

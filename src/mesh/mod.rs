@@ -10,6 +10,7 @@
 //! [`validate`] checks the invariants every output keeps.
 
 pub mod intersect;
+pub mod quality;
 pub mod stats;
 pub mod validate;
 

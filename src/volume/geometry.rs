@@ -121,6 +121,11 @@ impl Geometry {
         )
     }
 
+    /// The linear part (index offsets → mm offsets) as a matrix.
+    pub fn linear_matrix(&self) -> glam::DMat3 {
+        self.linear()
+    }
+
     /// Millimetres per index step along each index axis (the column norms).
     pub fn spacing(&self) -> [f64; 3] {
         let m = self.linear();

@@ -1,0 +1,1195 @@
+//! Mesh quality figures for remeshed (or any) interface meshes: edge lengths
+//! relative to a target, triangle angles, vertex valences, the one-sided
+//! Hausdorff distance to a reference mesh, and the volume enclosed by every
+//! label (with its change against the reference).
+//!
+//! This file owns [`quality`] and its [`QualityReport`], and the nearest-point
+//! query it needs: [`NearestBvh`] (a flat BVH over triangles, also usable to
+//! project points onto a reference surface) and [`closest_point_on_triangle`].
+//!
+//! Definitions used throughout:
+//! - **Edges** are the distinct undirected vertex pairs of the triangles. An
+//!   edge is a *boundary edge* when it is used by one triangle, by three or
+//!   more, or by triangles of different patches (junction curves are made of
+//!   such edges). A vertex on a boundary edge is a *boundary vertex*; every
+//!   other vertex is *interior*.
+//! - **Valence** of an interior vertex: its number of incident edges (all in
+//!   one patch). For boundary vertices the valence is counted **per patch**:
+//!   each (vertex, patch) pair contributes the number of that patch's edges at
+//!   the vertex, which is what regular remeshing aims at (6 inside, 4 on a
+//!   boundary).
+//! - **Percentiles** use the nearest-rank rule ([`percentile`]).
+//! - **Distances** are measured from samples of `mesh` (every vertex, every
+//!   triangle centroid and every edge midpoint) to the nearest point of the
+//!   reference triangles. In voxels they are divided by the **largest** voxel
+//!   spacing of `mesh.geometry` (1 mm for meshes read from PLY files).
+//! - **Volumes** are the signed volumes of each label's closed surface (the
+//!   patches touching it, oriented outward), as
+//!   [`InterfaceMesh::label_surface`] and [`InterfaceMesh::signed_volume`]
+//!   compute them, summed in one pass about the mesh's centre for accuracy. The
+//!   outside label's surface faces inward, so its volume is negative: it is
+//!   marked `unbounded` and gets no relative change.
+//!
+//! All sums run over fixed chunks, so reports do not depend on the number of
+//! threads.
+
+use glam::DVec3;
+use hashbrown::HashMap;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::InterfaceMesh;
+use crate::volume::LabelId;
+
+/// Options of [`quality`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QualityOptions {
+    /// Target edge length L in mm. When not a positive finite number, the mean
+    /// edge length of the mesh is used (the relative figures then measure
+    /// uniformity only).
+    pub target_edge_mm: f64,
+}
+
+impl Default for QualityOptions {
+    /// No target: edge lengths are measured against their mean.
+    fn default() -> Self {
+        QualityOptions {
+            target_edge_mm: 0.0,
+        }
+    }
+}
+
+/// Lower end of the accepted edge-length range, relative to L.
+pub const EDGE_RANGE_LO: f64 = 0.8;
+/// Upper end of the accepted edge-length range, relative to L (4/3 ≈ 1.33).
+pub const EDGE_RANGE_HI: f64 = 4.0 / 3.0;
+
+/// Everything [`quality`] measures.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct QualityReport {
+    pub vertices: usize,
+    pub triangles: usize,
+    pub patches: usize,
+    pub edges: EdgeStats,
+    pub angles: AngleStats,
+    pub valence: ValenceStats,
+    /// Distance from the mesh to the reference (when one was given).
+    pub distance: Option<DistanceStats>,
+    /// One entry per label that has a patch, by label id.
+    pub labels: Vec<LabelVolumeStats>,
+}
+
+/// Edge lengths.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct EdgeStats {
+    /// Distinct edges.
+    pub count: usize,
+    /// Edges on a patch boundary (one triangle, three or more, or two patches).
+    pub boundary: usize,
+    /// The L the relative figures use (mm).
+    pub target_mm: f64,
+    /// True when L is the mean edge length (no valid target was given).
+    pub target_is_mean: bool,
+    pub min_mm: f64,
+    pub max_mm: f64,
+    pub mean_mm: f64,
+    /// Population standard deviation.
+    pub std_mm: f64,
+    /// Mean / L.
+    pub mean_rel: f64,
+    /// Standard deviation / L.
+    pub std_rel: f64,
+    /// Share of edges with length in [0.8 L, 4/3 L] (0..1).
+    pub within_range: f64,
+}
+
+/// Triangle angles, in degrees.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct AngleStats {
+    /// Smallest angle of any triangle.
+    pub min_deg: f64,
+    /// 1st percentile of the per-triangle minimum angle.
+    pub min_p1_deg: f64,
+    /// Mean of the per-triangle minimum angle.
+    pub min_mean_deg: f64,
+    /// Share of triangles whose minimum angle is ≥ 20° (0..1).
+    pub min_ge_20: f64,
+    /// Share of triangles whose minimum angle is ≥ 30° (0..1).
+    pub min_ge_30: f64,
+    /// Largest angle of any triangle.
+    pub max_deg: f64,
+    /// 99th percentile of the per-triangle maximum angle.
+    pub max_p99_deg: f64,
+    /// Triangles with zero area (counted with angles 0° and 180°).
+    pub degenerate: usize,
+}
+
+/// Valence histograms: `interior[k]` = number of interior vertices with `k`
+/// edges; `boundary[k]` = number of (boundary vertex, patch) pairs with `k`
+/// edges of that patch at the vertex.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ValenceStats {
+    pub interior_vertices: usize,
+    pub boundary_vertices: usize,
+    pub interior: Vec<u64>,
+    pub boundary: Vec<u64>,
+    /// Share of interior vertices with valence 6 (0..1).
+    pub interior_6: f64,
+    /// Share of boundary (vertex, patch) pairs with valence 4 (0..1).
+    pub boundary_4: f64,
+}
+
+/// One-sided distance from the mesh to the reference.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct DistanceStats {
+    /// Sample points: vertices + triangle centroids + edge midpoints.
+    pub samples: usize,
+    /// Maximum distance (one-sided Hausdorff), mm.
+    pub hausdorff_mm: f64,
+    /// The same in voxels (divided by `voxel_mm`).
+    pub hausdorff_voxels: f64,
+    /// Mean distance over the samples, mm.
+    pub mean_mm: f64,
+    /// The same in voxels.
+    pub mean_voxels: f64,
+    /// The voxel size used: the largest spacing of the mesh's geometry.
+    pub voxel_mm: f64,
+    /// Where the maximum is attained (a sample of the mesh, LPS mm).
+    pub hausdorff_at: [f64; 3],
+}
+
+/// Enclosed volume of one label.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct LabelVolumeStats {
+    /// Dense label id in the mesh.
+    pub label: LabelId,
+    pub value: i64,
+    pub name: String,
+    /// Signed volume of the label's outward surface, mm³.
+    pub volume_mm3: f64,
+    /// True for a label whose surface encloses a negative volume (the outside).
+    pub unbounded: bool,
+    /// The reference's volume of the label with the same value, mm³.
+    pub reference_mm3: Option<f64>,
+    /// (volume − reference) / reference, for bounded labels with a positive
+    /// reference volume.
+    pub change: Option<f64>,
+}
+
+/// Measures `mesh`: edge lengths against `opts.target_edge_mm`, angles,
+/// valences, enclosed volumes, and with a `reference`, the one-sided
+/// Hausdorff distance from `mesh` to it and the volume change per label
+/// (labels matched by value). Never panics; an empty mesh gives zeros.
+///
+/// ```
+/// use glam::DVec3;
+/// use septa::mesh::{InterfaceMesh, LabelInfo, Patch};
+/// use septa::mesh::quality::{QualityOptions, quality};
+///
+/// // A regular octahedron of circumradius 1 around label 1, inside label 0.
+/// let mut m = InterfaceMesh::default();
+/// m.positions = vec![
+///     DVec3::X, -DVec3::X, DVec3::Y, -DVec3::Y, DVec3::Z, -DVec3::Z,
+/// ];
+/// // Outward (from label 1 into label 0) is the reverse of patch {0, 1}'s
+/// // orientation, so these triangles wind clockwise seen from outside.
+/// m.triangles = vec![
+///     [0, 4, 2], [2, 4, 1], [1, 4, 3], [3, 4, 0],
+///     [0, 2, 5], [2, 1, 5], [1, 3, 5], [3, 0, 5],
+/// ];
+/// m.triangle_patch = vec![0; 8];
+/// m.patches = vec![Patch { labels: [0, 1] }];
+/// m.labels = vec![
+///     LabelInfo { value: 0, name: "outside".into() },
+///     LabelInfo { value: 1, name: "inside".into() },
+/// ];
+/// let shifted = InterfaceMesh {
+///     positions: m.positions.iter().map(|p| *p + DVec3::new(0.0, 0.0, 0.25)).collect(),
+///     ..m.clone()
+/// };
+/// let r = quality(&shifted, Some(&m), &QualityOptions { target_edge_mm: 2f64.sqrt() });
+/// assert!((r.angles.min_deg - 60.0).abs() < 1e-9);
+/// assert_eq!(r.valence.interior, vec![0, 0, 0, 0, 6]);
+/// assert!((r.edges.mean_rel - 1.0).abs() < 1e-12);
+/// assert!((r.labels[1].volume_mm3 - 4.0 / 3.0).abs() < 1e-12);
+/// assert!(r.labels[0].unbounded);
+/// let d = r.distance.unwrap();
+/// assert!(d.hausdorff_mm > 0.0 && d.hausdorff_mm <= 0.25 + 1e-12);
+/// ```
+pub fn quality(
+    mesh: &InterfaceMesh,
+    reference: Option<&InterfaceMesh>,
+    opts: &QualityOptions,
+) -> QualityReport {
+    let topo = Topology::new(mesh);
+    let edges = edge_stats(mesh, &topo, opts.target_edge_mm);
+    let angles = angle_stats(mesh);
+    let valence = valence_stats(mesh, &topo);
+    let distance = reference.map(|r| distance_stats(mesh, &topo.edges, r));
+    let labels = label_volumes(mesh, reference);
+    QualityReport {
+        vertices: mesh.positions.len(),
+        triangles: mesh.triangles.len(),
+        patches: mesh.patches.len(),
+        edges,
+        angles,
+        valence,
+        distance,
+        labels,
+    }
+}
+
+impl QualityReport {
+    /// A few aligned lines for the terminal.
+    pub fn summary(&self) -> String {
+        let mut s = String::new();
+        let pct = |x: f64| format!("{:.1} %", 100.0 * x);
+        s.push_str(&format!(
+            "mesh       {} vertices, {} triangles, {} patches, {} edges ({} on patch boundaries)\n",
+            self.vertices, self.triangles, self.patches, self.edges.count, self.edges.boundary
+        ));
+        let e = &self.edges;
+        s.push_str(&format!(
+            "edges      L = {:.3} mm{}: mean {:.3} L, std {:.3} L; {} within [0.8 L, 1.33 L]; min {:.3} mm, max {:.3} mm\n",
+            e.target_mm,
+            if e.target_is_mean { " (mean)" } else { "" },
+            e.mean_rel,
+            e.std_rel,
+            pct(e.within_range),
+            e.min_mm,
+            e.max_mm
+        ));
+        let a = &self.angles;
+        s.push_str(&format!(
+            "angles     min {:.1}°, 1st percentile {:.1}°; {} ≥ 20°, {} ≥ 30°; max {:.1}°{}\n",
+            a.min_deg,
+            a.min_p1_deg,
+            pct(a.min_ge_20),
+            pct(a.min_ge_30),
+            a.max_deg,
+            if a.degenerate > 0 {
+                format!("; {} degenerate", a.degenerate)
+            } else {
+                String::new()
+            }
+        ));
+        let v = &self.valence;
+        s.push_str(&format!(
+            "valence    interior {}; boundary (per patch) {}\n",
+            top_valences(&v.interior),
+            top_valences(&v.boundary)
+        ));
+        if let Some(d) = &self.distance {
+            s.push_str(&format!(
+                "distance   Hausdorff {:.3} mm ({:.3} voxels), mean {:.3} mm, to the reference ({} samples)\n",
+                d.hausdorff_mm, d.hausdorff_voxels, d.mean_mm, d.samples
+            ));
+        }
+        let bounded: Vec<&LabelVolumeStats> = self.labels.iter().filter(|l| !l.unbounded).collect();
+        if !bounded.is_empty() {
+            let name_w = bounded.iter().map(|l| l.name.chars().count()).max().unwrap_or(0);
+            let with_change = bounded.iter().any(|l| l.change.is_some());
+            s.push_str(if with_change {
+                "volume     label, mm³, change against the reference\n"
+            } else {
+                "volume     label, mm³\n"
+            });
+            for l in bounded {
+                s.push_str(&format!(
+                    "           {:<name_w$}  {:>12.1}{}\n",
+                    l.name,
+                    l.volume_mm3,
+                    match l.change {
+                        Some(c) => format!("  {:+.2} %", 100.0 * c),
+                        None => String::new(),
+                    }
+                ));
+            }
+        }
+        s
+    }
+
+    /// The largest |relative volume change| over bounded labels, if any.
+    pub fn max_volume_change(&self) -> Option<f64> {
+        self.labels
+            .iter()
+            .filter_map(|l| l.change.map(f64::abs))
+            .fold(None, |m, c| Some(m.map_or(c, |m: f64| m.max(c))))
+    }
+}
+
+/// "6: 71.2 %, 5: 14.0 %, 7: 12.1 %" — the three most frequent valences.
+fn top_valences(h: &[u64]) -> String {
+    let total: u64 = h.iter().sum();
+    if total == 0 {
+        return "none".into();
+    }
+    let mut v: Vec<(usize, u64)> = h.iter().copied().enumerate().filter(|e| e.1 > 0).collect();
+    v.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+    v.iter()
+        .take(3)
+        .map(|(k, n)| format!("{k}: {:.1} %", 100.0 * *n as f64 / total as f64))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The `p`-th percentile (0..=100) of `values` by the nearest-rank rule: the
+/// value at 1-based rank ⌈p/100 · n⌉ (at least 1) in ascending order. `None`
+/// for an empty slice. NaNs sort last.
+///
+/// ```
+/// use septa::mesh::quality::percentile;
+/// let v = [5.0, 1.0, 4.0, 2.0, 3.0];
+/// assert_eq!(percentile(&v, 0.0), Some(1.0));
+/// assert_eq!(percentile(&v, 20.0), Some(1.0));
+/// assert_eq!(percentile(&v, 21.0), Some(2.0));
+/// assert_eq!(percentile(&v, 100.0), Some(5.0));
+/// ```
+pub fn percentile(values: &[f64], p: f64) -> Option<f64> {
+    let mut v = values.to_vec();
+    percentile_in_place(&mut v, p)
+}
+
+fn percentile_in_place(v: &mut [f64], p: f64) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    let n = v.len();
+    let p = if p.is_nan() { 0.0 } else { p.clamp(0.0, 100.0) };
+    let rank = ((p / 100.0 * n as f64).ceil() as usize).clamp(1, n);
+    let (_, x, _) = v.select_nth_unstable_by(rank - 1, |a, b| a.total_cmp(b));
+    Some(*x)
+}
+
+// ───────────────────────────── topology ─────────────────────────────
+
+const CHUNK: usize = 1 << 14;
+
+/// Distinct edges with their boundary flags, and boundary vertices.
+struct Topology {
+    /// Distinct edges (lower id first), ascending.
+    edges: Vec<[u32; 2]>,
+    /// Per edge: on a patch boundary.
+    edge_boundary: Vec<bool>,
+    /// (edge index, patch) of every distinct edge-in-patch, ascending.
+    edge_patches: Vec<(u32, u32)>,
+    /// Per vertex: on a boundary edge.
+    vertex_boundary: Vec<bool>,
+    /// Per vertex: used by a triangle.
+    vertex_used: Vec<bool>,
+}
+
+impl Topology {
+    fn new(mesh: &InterfaceMesh) -> Self {
+        let nv = mesh.positions.len();
+        let valid = |t: &[u32; 3]| t.iter().all(|&v| (v as usize) < nv);
+        let mut keys: Vec<(u64, u32)> = mesh
+            .triangles
+            .par_iter()
+            .enumerate()
+            .filter(|(_, t)| valid(t))
+            .flat_map_iter(|(i, t)| {
+                let p = mesh.triangle_patch.get(i).copied().unwrap_or(0);
+                (0..3).filter_map(move |k| {
+                    let (a, b) = (t[k], t[(k + 1) % 3]);
+                    (a != b).then(|| (((a.min(b) as u64) << 32) | a.max(b) as u64, p))
+                })
+            })
+            .collect();
+        keys.par_sort_unstable();
+        let mut edges = Vec::with_capacity(keys.len() / 2 + 1);
+        let mut edge_boundary = Vec::with_capacity(keys.len() / 2 + 1);
+        let mut edge_patches = Vec::with_capacity(keys.len() / 2 + 1);
+        let mut vertex_boundary = vec![false; nv];
+        let mut i = 0;
+        while i < keys.len() {
+            let key = keys[i].0;
+            let mut j = i;
+            let e = edges.len() as u32;
+            while j < keys.len() && keys[j].0 == key {
+                if j == i || keys[j].1 != keys[j - 1].1 {
+                    edge_patches.push((e, keys[j].1));
+                }
+                j += 1;
+            }
+            let uses = j - i;
+            let boundary = uses != 2 || keys[i].1 != keys[j - 1].1;
+            let (a, b) = ((key >> 32) as u32, key as u32);
+            if boundary {
+                vertex_boundary[a as usize] = true;
+                vertex_boundary[b as usize] = true;
+            }
+            edges.push([a, b]);
+            edge_boundary.push(boundary);
+            i = j;
+        }
+        let mut vertex_used = vec![false; nv];
+        for t in mesh.triangles.iter().filter(|t| valid(t)) {
+            for &v in t {
+                vertex_used[v as usize] = true;
+            }
+        }
+        Topology {
+            edges,
+            edge_boundary,
+            edge_patches,
+            vertex_boundary,
+            vertex_used,
+        }
+    }
+}
+
+fn edge_stats(mesh: &InterfaceMesh, topo: &Topology, target: f64) -> EdgeStats {
+    let p = &mesh.positions;
+    let lengths: Vec<f64> = topo
+        .edges
+        .par_iter()
+        .map(|&[a, b]| p[a as usize].distance(p[b as usize]))
+        .collect();
+    let n = lengths.len();
+    if n == 0 {
+        return EdgeStats {
+            target_mm: if target.is_finite() && target > 0.0 {
+                target
+            } else {
+                0.0
+            },
+            target_is_mean: !(target.is_finite() && target > 0.0),
+            ..Default::default()
+        };
+    }
+    let sum = chunked_sum(&lengths, |&l| l);
+    let mean = sum / n as f64;
+    let var = chunked_sum(&lengths, |&l| (l - mean) * (l - mean)) / n as f64;
+    let std = var.max(0.0).sqrt();
+    let (l, is_mean) = if target.is_finite() && target > 0.0 {
+        (target, false)
+    } else {
+        (mean, true)
+    };
+    let (lo, hi) = (EDGE_RANGE_LO * l, EDGE_RANGE_HI * l);
+    let within = lengths.par_iter().filter(|&&x| x >= lo && x <= hi).count();
+    let (min, max) = lengths
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+    let rel = |x: f64| if l > 0.0 { x / l } else { 0.0 };
+    EdgeStats {
+        count: n,
+        boundary: topo.edge_boundary.iter().filter(|&&b| b).count(),
+        target_mm: l,
+        target_is_mean: is_mean,
+        min_mm: min,
+        max_mm: max,
+        mean_mm: mean,
+        std_mm: std,
+        mean_rel: rel(mean),
+        std_rel: rel(std),
+        within_range: if l > 0.0 {
+            within as f64 / n as f64
+        } else {
+            0.0
+        },
+    }
+}
+
+/// Sum of `f` over `v` in fixed chunks (independent of the thread count).
+fn chunked_sum<T: Sync>(v: &[T], f: impl Fn(&T) -> f64 + Sync) -> f64 {
+    let parts: Vec<f64> = v
+        .par_chunks(CHUNK)
+        .map(|c| c.iter().map(&f).sum::<f64>())
+        .collect();
+    parts.iter().sum()
+}
+
+/// Minimum and maximum angle of a triangle in degrees, and whether its area is
+/// zero (then the angles are reported as 0° and 180°). Scale-free: the edge
+/// vectors are normalised by their largest component first.
+fn triangle_angles(a: DVec3, b: DVec3, c: DVec3) -> (f64, f64, bool) {
+    let (ab, bc, ca) = (b - a, c - b, a - c);
+    let s = ab.abs().max(bc.abs()).max(ca.abs()).max_element();
+    if !(s > 0.0 && s.is_finite()) {
+        return (0.0, 180.0, true);
+    }
+    let (ab, bc, ca) = (ab / s, bc / s, ca / s);
+    if !(ab.cross(-ca).length() > 0.0) {
+        return (0.0, 180.0, true);
+    }
+    let angle = |u: DVec3, v: DVec3| u.cross(v).length().atan2(u.dot(v)).to_degrees();
+    let x = angle(ab, -ca);
+    let y = angle(bc, -ab);
+    let z = angle(ca, -bc);
+    (x.min(y).min(z), x.max(y).max(z), false)
+}
+
+fn angle_stats(mesh: &InterfaceMesh) -> AngleStats {
+    let p = &mesh.positions;
+    let nv = p.len();
+    let per: Vec<(f64, f64, bool)> = mesh
+        .triangles
+        .par_iter()
+        .map(|t| {
+            if t.iter().any(|&v| v as usize >= nv) {
+                return (0.0, 180.0, true);
+            }
+            let [a, b, c] = t.map(|v| p[v as usize]);
+            triangle_angles(a, b, c)
+        })
+        .collect();
+    let n = per.len();
+    if n == 0 {
+        return AngleStats::default();
+    }
+    let mut mins: Vec<f64> = per.iter().map(|x| x.0).collect();
+    let mut maxs: Vec<f64> = per.iter().map(|x| x.1).collect();
+    let min_deg = mins.iter().copied().fold(f64::INFINITY, f64::min);
+    let max_deg = maxs.iter().copied().fold(0.0, f64::max);
+    let ge20 = mins.iter().filter(|&&m| m >= 20.0).count();
+    let ge30 = mins.iter().filter(|&&m| m >= 30.0).count();
+    let mean = chunked_sum(&mins, |&m| m) / n as f64;
+    AngleStats {
+        min_deg,
+        min_p1_deg: percentile_in_place(&mut mins, 1.0).unwrap_or(0.0),
+        min_mean_deg: mean,
+        min_ge_20: ge20 as f64 / n as f64,
+        min_ge_30: ge30 as f64 / n as f64,
+        max_deg,
+        max_p99_deg: percentile_in_place(&mut maxs, 99.0).unwrap_or(0.0),
+        degenerate: per.iter().filter(|x| x.2).count(),
+    }
+}
+
+fn valence_stats(mesh: &InterfaceMesh, topo: &Topology) -> ValenceStats {
+    let nv = mesh.positions.len();
+    let mut degree = vec![0u32; nv];
+    for &[a, b] in &topo.edges {
+        degree[a as usize] += 1;
+        degree[b as usize] += 1;
+    }
+    let mut interior: Vec<u64> = Vec::new();
+    let mut interior_vertices = 0;
+    let mut boundary_vertices = 0;
+    for v in 0..nv {
+        if !topo.vertex_used[v] {
+            continue;
+        }
+        if topo.vertex_boundary[v] {
+            boundary_vertices += 1;
+        } else {
+            interior_vertices += 1;
+            bump(&mut interior, degree[v] as usize);
+        }
+    }
+    // Per-patch valence of boundary vertices.
+    let mut per_patch: HashMap<u64, u32> = HashMap::new();
+    for &(e, patch) in &topo.edge_patches {
+        for v in topo.edges[e as usize] {
+            if topo.vertex_boundary[v as usize] {
+                *per_patch.entry(((v as u64) << 32) | patch as u64).or_insert(0) += 1;
+            }
+        }
+    }
+    let mut boundary: Vec<u64> = Vec::new();
+    for &k in per_patch.values() {
+        bump(&mut boundary, k as usize);
+    }
+    let share = |h: &[u64], k: usize| {
+        let total: u64 = h.iter().sum();
+        if total == 0 {
+            0.0
+        } else {
+            h.get(k).copied().unwrap_or(0) as f64 / total as f64
+        }
+    };
+    ValenceStats {
+        interior_vertices,
+        boundary_vertices,
+        interior_6: share(&interior, 6),
+        boundary_4: share(&boundary, 4),
+        interior,
+        boundary,
+    }
+}
+
+fn bump(h: &mut Vec<u64>, k: usize) {
+    if h.len() <= k {
+        h.resize(k + 1, 0);
+    }
+    h[k] += 1;
+}
+
+// ───────────────────────────── volumes ─────────────────────────────
+
+/// Signed volume per dense label id (outward surfaces), about the bbox centre.
+fn volumes(mesh: &InterfaceMesh) -> Vec<f64> {
+    let nl = mesh
+        .patches
+        .iter()
+        .map(|p| p.labels[1] as usize + 1)
+        .max()
+        .unwrap_or(0);
+    let p = &mesh.positions;
+    if nl == 0 || p.is_empty() {
+        return vec![0.0; nl];
+    }
+    let (lo, hi) = p
+        .iter()
+        .fold((DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)), |(l, h), &x| {
+            (l.min(x), h.max(x))
+        });
+    let o = 0.5 * lo + 0.5 * hi;
+    let nv = p.len();
+    let np = mesh.patches.len();
+    let tris: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
+    let parts: Vec<Vec<f64>> = tris
+        .par_chunks(CHUNK)
+        .map(|chunk| {
+            let mut acc = vec![0.0; nl];
+            for &t in chunk {
+                let tri = mesh.triangles[t as usize];
+                let Some(&patch) = mesh.triangle_patch.get(t as usize) else {
+                    continue;
+                };
+                if patch as usize >= np || tri.iter().any(|&v| v as usize >= nv) {
+                    continue;
+                }
+                let [a, b, c] = tri.map(|v| p[v as usize] - o);
+                let v = a.dot(b.cross(c)) / 6.0;
+                let [la, lb] = mesh.patches[patch as usize].labels;
+                acc[la as usize] += v;
+                acc[lb as usize] -= v;
+            }
+            acc
+        })
+        .collect();
+    let mut out = vec![0.0; nl];
+    for part in parts {
+        for (o, x) in out.iter_mut().zip(part) {
+            *o += x;
+        }
+    }
+    out
+}
+
+fn label_volumes(mesh: &InterfaceMesh, reference: Option<&InterfaceMesh>) -> Vec<LabelVolumeStats> {
+    let vol = volumes(mesh);
+    let reference = reference.map(|r| {
+        let v = volumes(r);
+        let by_value: HashMap<i64, f64> = r
+            .labels_with_patches()
+            .into_iter()
+            .map(|l| (r.label_value(l), v[l as usize]))
+            .collect();
+        by_value
+    });
+    mesh.labels_with_patches()
+        .into_iter()
+        .map(|l| {
+            let value = mesh.label_value(l);
+            let volume = vol[l as usize];
+            let unbounded = volume < 0.0;
+            let reference_mm3 = reference.as_ref().and_then(|r| r.get(&value).copied());
+            let change = match reference_mm3 {
+                Some(r) if !unbounded && r > 0.0 => Some((volume - r) / r),
+                _ => None,
+            };
+            LabelVolumeStats {
+                label: l,
+                value,
+                name: mesh.label_name(l),
+                volume_mm3: volume,
+                unbounded,
+                reference_mm3,
+                change,
+            }
+        })
+        .collect()
+}
+
+// ───────────────────────────── distances ─────────────────────────────
+
+fn distance_stats(mesh: &InterfaceMesh, edges: &[[u32; 2]], reference: &InterfaceMesh) -> DistanceStats {
+    let voxel_mm = mesh
+        .geometry
+        .spacing()
+        .into_iter()
+        .fold(0.0f64, f64::max);
+    let voxel_mm = if voxel_mm.is_finite() && voxel_mm > 0.0 {
+        voxel_mm
+    } else {
+        1.0
+    };
+    let bvh = NearestBvh::new(&reference.positions, &reference.triangles);
+    let p = &mesh.positions;
+    let nv = p.len();
+    if bvh.is_empty() {
+        return DistanceStats {
+            voxel_mm,
+            ..Default::default()
+        };
+    }
+    // Per chunk: (max d², where, sum of d, count).
+    type Part = (f64, DVec3, f64, usize);
+    let combine = |parts: Vec<Part>| -> Part {
+        parts.into_iter().fold((-1.0, DVec3::ZERO, 0.0, 0), |acc, x| {
+            (
+                if x.0 > acc.0 { x.0 } else { acc.0 },
+                if x.0 > acc.0 { x.1 } else { acc.1 },
+                acc.2 + x.2,
+                acc.3 + x.3,
+            )
+        })
+    };
+    // Vertices, remembering the nearest triangle as a hint for the rest.
+    let mut hints = vec![u32::MAX; nv];
+    let vparts: Vec<Part> = hints
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .map(|(ci, hs)| {
+            let mut part: Part = (-1.0, DVec3::ZERO, 0.0, 0);
+            let mut hint = u32::MAX;
+            for (k, h) in hs.iter_mut().enumerate() {
+                let x = p[ci * CHUNK + k];
+                if let Some(n) = bvh.nearest(x, hint) {
+                    hint = n.triangle;
+                    *h = n.triangle;
+                    add(&mut part, x, n.distance_squared);
+                }
+            }
+            part
+        })
+        .collect();
+    let hints = &hints;
+    let hint_of = |v: u32| hints.get(v as usize).copied().unwrap_or(u32::MAX);
+    let tparts: Vec<Part> = mesh
+        .triangles
+        .par_chunks(CHUNK)
+        .map(|ts| {
+            let mut part: Part = (-1.0, DVec3::ZERO, 0.0, 0);
+            for t in ts {
+                if t.iter().any(|&v| v as usize >= nv) {
+                    continue;
+                }
+                let [a, b, c] = t.map(|v| p[v as usize]);
+                let x = (a + b + c) / 3.0;
+                if let Some(n) = bvh.nearest(x, hint_of(t[0])) {
+                    add(&mut part, x, n.distance_squared);
+                }
+            }
+            part
+        })
+        .collect();
+    let eparts: Vec<Part> = edges
+        .par_chunks(CHUNK)
+        .map(|es| {
+            let mut part: Part = (-1.0, DVec3::ZERO, 0.0, 0);
+            for &[a, b] in es {
+                let x = 0.5 * (p[a as usize] + p[b as usize]);
+                if let Some(n) = bvh.nearest(x, hint_of(a)) {
+                    add(&mut part, x, n.distance_squared);
+                }
+            }
+            part
+        })
+        .collect();
+    let all = combine(
+        [combine(vparts), combine(tparts), combine(eparts)]
+            .into_iter()
+            .collect(),
+    );
+    let (max2, at, sum, count) = all;
+    let h = max2.max(0.0).sqrt();
+    let mean = if count > 0 { sum / count as f64 } else { 0.0 };
+    DistanceStats {
+        samples: count,
+        hausdorff_mm: h,
+        hausdorff_voxels: h / voxel_mm,
+        mean_mm: mean,
+        mean_voxels: mean / voxel_mm,
+        voxel_mm,
+        hausdorff_at: at.to_array(),
+    }
+}
+
+fn add(part: &mut (f64, DVec3, f64, usize), x: DVec3, d2: f64) {
+    if d2 > part.0 {
+        part.0 = d2;
+        part.1 = x;
+    }
+    part.2 += d2.sqrt();
+    part.3 += 1;
+}
+
+/// The point of triangle `abc` nearest to `p` (Ericson, *Real-Time Collision
+/// Detection* §5.1.5). Degenerate triangles (zero area, coincident corners)
+/// are handled as their longest segment.
+///
+/// ```
+/// use glam::DVec3;
+/// use septa::mesh::quality::closest_point_on_triangle;
+/// let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::Y);
+/// assert_eq!(closest_point_on_triangle(DVec3::new(0.25, 0.25, 3.0), a, b, c), DVec3::new(0.25, 0.25, 0.0));
+/// assert_eq!(closest_point_on_triangle(DVec3::new(-1.0, -1.0, 0.0), a, b, c), a);
+/// ```
+pub fn closest_point_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let den = d1 - d3;
+        return if den > 0.0 { a + ab * (d1 / den) } else { a };
+    }
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let den = d2 - d6;
+        return if den > 0.0 { a + ac * (d2 / den) } else { a };
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        let den = (d4 - d3) + (d5 - d6);
+        return if den > 0.0 {
+            b + (c - b) * ((d4 - d3) / den)
+        } else {
+            b
+        };
+    }
+    let den = va + vb + vc;
+    if den > 0.0 && den.is_finite() {
+        let v = vb / den;
+        let w = vc / den;
+        let q = a + ab * v + ac * w;
+        if q.is_finite() {
+            return q;
+        }
+    }
+    // Degenerate: the nearest of the three edges.
+    let s = [
+        closest_on_segment(p, a, b),
+        closest_on_segment(p, b, c),
+        closest_on_segment(p, c, a),
+    ];
+    let mut best = s[0];
+    for q in &s[1..] {
+        if p.distance_squared(*q) < p.distance_squared(best) {
+            best = *q;
+        }
+    }
+    best
+}
+
+fn closest_on_segment(p: DVec3, a: DVec3, b: DVec3) -> DVec3 {
+    let d = b - a;
+    let l2 = d.length_squared();
+    if !(l2 > 0.0) || !l2.is_finite() {
+        return a;
+    }
+    a + d * ((p - a).dot(d) / l2).clamp(0.0, 1.0)
+}
+
+/// Result of [`NearestBvh::nearest`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Nearest {
+    /// Index of the nearest triangle in the slice given to [`NearestBvh::new`].
+    pub triangle: u32,
+    /// The nearest point on it.
+    pub point: DVec3,
+    /// Squared distance from the query point.
+    pub distance_squared: f64,
+}
+
+#[derive(Clone, Copy, Default)]
+struct Node {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    /// Leaf: first slot in `order`; inner: index of the right child (the left
+    /// child follows the node).
+    start: u32,
+    /// Leaf: number of triangles; inner: 0.
+    count: u32,
+}
+
+const NEAREST_LEAF: usize = 4;
+
+/// A bounding-volume hierarchy over triangles for nearest-point queries:
+/// median splits on the longest centroid axis, built in parallel into a
+/// depth-first node array (the same tree for any thread count), boxes stored
+/// as `f32` rounded outward. Triangles with a vertex id out of range are
+/// left out.
+pub struct NearestBvh<'a> {
+    positions: &'a [DVec3],
+    triangles: &'a [[u32; 3]],
+    nodes: Vec<Node>,
+    /// Triangle ids in leaf order.
+    order: Vec<u32>,
+}
+
+fn f32_down(x: f64) -> f32 {
+    let f = x as f32;
+    if f.is_nan() {
+        return f32::MIN;
+    }
+    if (f as f64) <= x {
+        f
+    } else if f == f32::INFINITY {
+        f32::MAX
+    } else {
+        f - (f.abs() * f32::EPSILON).max(f32::MIN_POSITIVE)
+    }
+}
+
+fn f32_up(x: f64) -> f32 {
+    -f32_down(-x)
+}
+
+impl<'a> NearestBvh<'a> {
+    /// Builds the hierarchy over `triangles` (vertex ids into `positions`).
+    pub fn new(positions: &'a [DVec3], triangles: &'a [[u32; 3]]) -> Self {
+        let nv = positions.len();
+        let mut order: Vec<u32> = (0..triangles.len() as u32)
+            .filter(|&t| triangles[t as usize].iter().all(|&v| (v as usize) < nv))
+            .collect();
+        let centroids: Vec<[f32; 3]> = triangles
+            .par_iter()
+            .map(|t| {
+                if t.iter().any(|&v| v as usize >= nv) {
+                    return [0.0; 3];
+                }
+                let [a, b, c] = t.map(|v| positions[v as usize]);
+                let m = (a + b + c) / 3.0;
+                [m.x as f32, m.y as f32, m.z as f32]
+            })
+            .collect();
+        let mut counts = HashMap::new();
+        let n_nodes = node_count(order.len(), &mut counts);
+        let mut nodes = vec![Node::default(); if order.is_empty() { 0 } else { n_nodes }];
+        if !order.is_empty() {
+            let ctx = BuildCtx {
+                positions,
+                triangles,
+                centroids: &centroids,
+                counts: &counts,
+            };
+            build(&ctx, &mut order, 0, 0, &mut nodes);
+        }
+        NearestBvh {
+            positions,
+            triangles,
+            nodes,
+            order,
+        }
+    }
+
+    /// True when there is no (valid) triangle.
+    pub fn is_empty(&self) -> bool {
+        self.order.is_empty()
+    }
+
+    /// The triangle nearest to `p`. `hint` is a triangle id expected to be
+    /// close (e.g. the answer for a neighbouring point), or `u32::MAX`; it only
+    /// speeds the search up. `None` when the hierarchy is empty.
+    pub fn nearest(&self, p: DVec3, hint: u32) -> Option<Nearest> {
+        if self.order.is_empty() {
+            return None;
+        }
+        let mut best = Nearest {
+            triangle: u32::MAX,
+            point: DVec3::ZERO,
+            distance_squared: f64::INFINITY,
+        };
+        if let Some(t) = self.triangles.get(hint as usize) {
+            if t.iter().all(|&v| (v as usize) < self.positions.len()) {
+                let [a, b, c] = t.map(|v| self.positions[v as usize]);
+                let q = closest_point_on_triangle(p, a, b, c);
+                best = Nearest {
+                    triangle: hint,
+                    point: q,
+                    distance_squared: p.distance_squared(q),
+                };
+            }
+        }
+        let mut stack = [(0u32, 0.0f64); 128];
+        let mut sp = 1;
+        stack[0] = (0, box_distance2(&self.nodes[0], p));
+        while sp > 0 {
+            sp -= 1;
+            let (ni, d2) = stack[sp];
+            if d2 >= best.distance_squared && best.triangle != u32::MAX {
+                continue;
+            }
+            let node = &self.nodes[ni as usize];
+            if node.count > 0 {
+                let s = node.start as usize;
+                for &t in &self.order[s..s + node.count as usize] {
+                    let [a, b, c] = self.triangles[t as usize].map(|v| self.positions[v as usize]);
+                    let q = closest_point_on_triangle(p, a, b, c);
+                    let d2 = p.distance_squared(q);
+                    if d2 < best.distance_squared || best.triangle == u32::MAX {
+                        best = Nearest {
+                            triangle: t,
+                            point: q,
+                            distance_squared: d2,
+                        };
+                    }
+                }
+            } else {
+                let (l, r) = (ni + 1, node.start);
+                let dl = box_distance2(&self.nodes[l as usize], p);
+                let dr = box_distance2(&self.nodes[r as usize], p);
+                let (near, dn, far, df) = if dl <= dr {
+                    (l, dl, r, dr)
+                } else {
+                    (r, dr, l, dl)
+                };
+                if sp + 2 > stack.len() {
+                    // Cannot happen for median splits (depth ≤ 33); stay safe.
+                    continue;
+                }
+                if df < best.distance_squared || best.triangle == u32::MAX {
+                    stack[sp] = (far, df);
+                    sp += 1;
+                }
+                if dn < best.distance_squared || best.triangle == u32::MAX {
+                    stack[sp] = (near, dn);
+                    sp += 1;
+                }
+            }
+        }
+        (best.triangle != u32::MAX).then_some(best)
+    }
+}
+
+fn box_distance2(n: &Node, p: DVec3) -> f64 {
+    let mut d2 = 0.0;
+    for k in 0..3 {
+        let x = p[k];
+        let lo = n.lo[k] as f64;
+        let hi = n.hi[k] as f64;
+        let d = if x < lo {
+            lo - x
+        } else if x > hi {
+            x - hi
+        } else {
+            0.0
+        };
+        d2 += d * d;
+    }
+    d2
+}
+
+/// Nodes of the tree over `n` triangles (memoised; sizes along any path are
+/// ⌊n/2^k⌋ or ⌈n/2^k⌉, so the memo stays small).
+fn node_count(n: usize, memo: &mut HashMap<usize, usize>) -> usize {
+    if n <= NEAREST_LEAF {
+        return 1;
+    }
+    if let Some(&c) = memo.get(&n) {
+        return c;
+    }
+    let c = 1 + node_count(n / 2, memo) + node_count(n - n / 2, memo);
+    memo.insert(n, c);
+    c
+}
+
+struct BuildCtx<'a> {
+    positions: &'a [DVec3],
+    triangles: &'a [[u32; 3]],
+    centroids: &'a [[f32; 3]],
+    counts: &'a HashMap<usize, usize>,
+}
+
+impl BuildCtx<'_> {
+    fn count(&self, n: usize) -> usize {
+        if n <= NEAREST_LEAF {
+            1
+        } else {
+            self.counts[&n]
+        }
+    }
+}
+
+/// Builds the subtree over `items` (slots `offset..` of the order) into
+/// `nodes` (exactly `count(items.len())` long, this node first).
+fn build(ctx: &BuildCtx, items: &mut [u32], offset: usize, node_base: u32, nodes: &mut [Node]) {
+    let n = items.len();
+    if n <= NEAREST_LEAF {
+        let mut lo = [f32::MAX; 3];
+        let mut hi = [f32::MIN; 3];
+        for &t in items.iter() {
+            for v in ctx.triangles[t as usize] {
+                let x = ctx.positions[v as usize];
+                for k in 0..3 {
+                    lo[k] = lo[k].min(f32_down(x[k]));
+                    hi[k] = hi[k].max(f32_up(x[k]));
+                }
+            }
+        }
+        nodes[0] = Node {
+            lo,
+            hi,
+            start: offset as u32,
+            count: n as u32,
+        };
+        return;
+    }
+    let mut clo = [f32::MAX; 3];
+    let mut chi = [f32::MIN; 3];
+    for &t in items.iter() {
+        let c = ctx.centroids[t as usize];
+        for k in 0..3 {
+            clo[k] = clo[k].min(c[k]);
+            chi[k] = chi[k].max(c[k]);
+        }
+    }
+    let ext = [chi[0] - clo[0], chi[1] - clo[1], chi[2] - clo[2]];
+    let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
+        0
+    } else if ext[1] >= ext[2] {
+        1
+    } else {
+        2
+    };
+    let mid = n / 2;
+    items.select_nth_unstable_by(mid, |&a, &b| {
+        ctx.centroids[a as usize][axis]
+            .total_cmp(&ctx.centroids[b as usize][axis])
+            .then(a.cmp(&b))
+    });
+    let left_nodes = ctx.count(mid);
+    let (this, rest) = nodes.split_at_mut(1);
+    let (left, right) = rest.split_at_mut(left_nodes);
+    let (li, ri) = items.split_at_mut(mid);
+    let right_index = node_base + 1 + left_nodes as u32;
+    if n > 8192 {
+        rayon::join(
+            || build(ctx, li, offset, node_base + 1, left),
+            || build(ctx, ri, offset + mid, right_index, right),
+        );
+    } else {
+        build(ctx, li, offset, node_base + 1, left);
+        build(ctx, ri, offset + mid, right_index, right);
+    }
+    let (a, b) = (left[0], right[0]);
+    this[0] = Node {
+        lo: [a.lo[0].min(b.lo[0]), a.lo[1].min(b.lo[1]), a.lo[2].min(b.lo[2])],
+        hi: [a.hi[0].max(b.hi[0]), a.hi[1].max(b.hi[1]), a.hi[2].max(b.hi[2])],
+        start: right_index,
+        count: 0,
+    };
+}

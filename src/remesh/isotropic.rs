@@ -1,0 +1,502 @@
+//! Isotropic remeshing of interface patches to a target edge length L
+//! (Botsch & Kobbelt 2004), aware of the junction curves the patches share.
+//!
+//! Each iteration has two passes:
+//! 1. **Curves**, one after the other in a fixed order: curve edges longer than
+//!    4/3 L are split, shorter than 4/5 L collapsed (never a corner), and curve
+//!    vertices relaxed along the curve and projected onto its smoothed reference
+//!    polyline. Every change is applied to all patches that share the edge, so
+//!    the patches keep sharing their boundary exactly.
+//! 2. **Patches**, in parallel: with the curves frozen, interior edges are split
+//!    and collapsed, flipped toward valence 6 (4 on the boundary), and interior
+//!    vertices relaxed tangentially and projected onto the patch's smoothed
+//!    reference surface.
+//!
+//! Every collapse, flip and move is checked first: the link condition (the
+//! patch stays a manifold), no triangle turning over (normal flip), no new edge
+//! longer than 4/3 L from a collapse, and no triangle of poor quality where the
+//! old ones were better.
+
+use glam::DVec3;
+use hashbrown::HashMap;
+use rayon::prelude::*;
+
+use super::halfedge::{HalfedgeMesh, NONE};
+use super::network::{Network, VertexKind};
+use super::project::{CurveRef, SurfaceRef};
+use crate::error::{Error, Result};
+use crate::extract::is_degenerate;
+use crate::mesh::{InterfaceMesh, JunctionCurve};
+
+/// Triangle quality in (0, 1]: 4√3 · area / Σ edge², 1 for an equilateral triangle.
+#[inline]
+pub fn triangle_quality(a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    let area2 = (b - a).cross(c - a).length();
+    let sum = (b - a).length_squared() + (c - b).length_squared() + (a - c).length_squared();
+    if sum == 0.0 { 0.0 } else { 2.0 * 3f64.sqrt() * area2 / sum }
+}
+
+/// Lowest quality a collapse, flip or move may create (unless the triangles
+/// it replaces were worse).
+const MIN_QUALITY: f64 = 0.15;
+
+struct PatchState {
+    mesh: HalfedgeMesh,
+    reference: SurfaceRef,
+}
+
+/// The remesher's state.
+pub(crate) struct Remesher {
+    /// Positions of junction vertices (global ids); interior vertices live in the patches.
+    pos: Vec<DVec3>,
+    kind: Vec<VertexKind>,
+    alive: Vec<bool>,
+    curves: Vec<Vec<u32>>,
+    closed: Vec<bool>,
+    curve_labels: Vec<Vec<crate::volume::LabelId>>,
+    curve_ref: Vec<CurveRef>,
+    patches: Vec<PatchState>,
+    /// Local copies of each junction vertex: (patch, local vertex).
+    copies: HashMap<u32, Vec<(u32, u32)>>,
+    target: f64,
+}
+
+impl Remesher {
+    /// Sets up patch meshes at the smoothed positions `smoothed`.
+    pub(crate) fn new(mesh: &InterfaceMesh, net: &Network, smoothed: &[DVec3], target: f64) -> Result<Self> {
+        let groups = mesh.patch_triangles();
+        let patches: Vec<PatchState> = groups
+            .par_iter()
+            .enumerate()
+            .map(|(p, tris)| build_patch(mesh, net, smoothed, p, tris))
+            .collect::<Result<_>>()?;
+        let curve_ref = net
+            .curves
+            .par_iter()
+            .map(|c| CurveRef::new(&c.vertices.iter().map(|&v| smoothed[v as usize]).collect::<Vec<_>>(), c.closed))
+            .collect();
+        let mut r = Remesher {
+            pos: smoothed.to_vec(),
+            kind: net.kind.clone(),
+            alive: vec![true; smoothed.len()],
+            curves: net.curves.iter().map(|c| c.vertices.clone()).collect(),
+            closed: net.curves.iter().map(|c| c.closed).collect(),
+            curve_labels: mesh.junctions.iter().map(|j| j.labels.clone()).collect(),
+            curve_ref,
+            patches,
+            copies: HashMap::new(),
+            target,
+        };
+        r.rebuild_copies();
+        Ok(r)
+    }
+
+    fn rebuild_copies(&mut self) {
+        self.copies.clear();
+        for (p, st) in self.patches.iter().enumerate() {
+            for v in st.mesh.vertices() {
+                if st.mesh.locked[v as usize] {
+                    self.copies.entry(st.mesh.tag[v as usize]).or_default().push((p as u32, v));
+                }
+            }
+        }
+    }
+
+    /// Runs `iterations` curve + patch passes.
+    pub(crate) fn run(&mut self, iterations: u32) {
+        for _ in 0..iterations {
+            for c in 0..self.curves.len() {
+                self.remesh_curve(c);
+            }
+            let target = self.target;
+            self.patches.par_iter_mut().for_each(|st| remesh_patch(st, target));
+            self.rebuild_copies();
+        }
+    }
+
+    /// The boundary halfedge from local copy of `u` to a local copy of `v` in each patch.
+    fn curve_edge(&self, u: u32, v: u32) -> Vec<(u32, u32)> {
+        let mut out = Vec::new();
+        for &(p, lu) in self.copies.get(&u).map(|c| c.as_slice()).unwrap_or(&[]) {
+            let m = &self.patches[p as usize].mesh;
+            if let Some(h) = m.outgoing(lu).find(|&g| m.tag[m.to(g) as usize] == v && m.is_boundary_edge(g)) {
+                out.push((p, h));
+            }
+        }
+        out
+    }
+
+    fn remesh_curve(&mut self, c: usize) {
+        let (hi, lo) = (4.0 / 3.0 * self.target, 4.0 / 5.0 * self.target);
+        // splits
+        let mut i = 0;
+        while i < self.curve_edges(c) {
+            let (u, v) = self.curve_edge_at(c, i);
+            if (self.pos[u as usize] - self.pos[v as usize]).length() > hi {
+                let mid = self.curve_ref[c].project((self.pos[u as usize] + self.pos[v as usize]) * 0.5);
+                let sites = self.curve_edge(u, v);
+                let m = self.pos.len() as u32;
+                self.pos.push(mid);
+                self.kind.push(VertexKind::Curve(c as u32));
+                self.alive.push(true);
+                for (p, h) in sites {
+                    let mesh = &mut self.patches[p as usize].mesh;
+                    let lm = mesh.split(h, mid);
+                    mesh.tag[lm as usize] = m;
+                    mesh.locked[lm as usize] = true;
+                    self.copies.entry(m).or_default().push((p, lm));
+                }
+                self.curves[c].insert(i + 1, m);
+                i += 2;
+            } else {
+                i += 1;
+            }
+        }
+        // collapses
+        let mut i = 0;
+        while i < self.curve_edges(c) {
+            let (u, v) = self.curve_edge_at(c, i);
+            let len = (self.pos[u as usize] - self.pos[v as usize]).length();
+            if len < lo && self.try_curve_collapse(c, i, u, v) {
+                continue;
+            }
+            i += 1;
+        }
+        self.relax_curve(c);
+    }
+
+    fn curve_edges(&self, c: usize) -> usize {
+        let n = self.curves[c].len();
+        if self.closed[c] { if n > 2 { n } else { 0 } } else { n.saturating_sub(1) }
+    }
+
+    fn curve_edge_at(&self, c: usize, i: usize) -> (u32, u32) {
+        let cv = &self.curves[c];
+        (cv[i], cv[(i + 1) % cv.len()])
+    }
+
+    /// Collapses curve edge i (u, v) by removing a non-corner end; false if not allowed.
+    fn try_curve_collapse(&mut self, c: usize, i: usize, u: u32, v: u32) -> bool {
+        if self.closed[c] && self.curves[c].len() <= 3 {
+            return false;
+        }
+        let n = self.curves[c].len();
+        let (remove, keep, idx) = if self.kind[u as usize] != VertexKind::Corner {
+            (u, v, i)
+        } else if self.kind[v as usize] != VertexKind::Corner {
+            (v, u, (i + 1) % n)
+        } else {
+            return false;
+        };
+        // the other curve neighbour of `remove` must stay within 4/3 L of `keep`
+        let other = if remove == u { self.curves[c][(i + n - 1) % n] } else { self.curves[c][(i + 2) % n] };
+        if (self.pos[other as usize] - self.pos[keep as usize]).length() > 4.0 / 3.0 * self.target {
+            return false;
+        }
+        let sites = self.curve_edge(remove, keep);
+        let expected = self.copies.get(&remove).map_or(0, |c| c.len());
+        if sites.is_empty() || sites.len() != expected {
+            return false;
+        }
+        let target_pos = self.pos[keep as usize];
+        let ok = sites.iter().all(|&(p, h)| {
+            let m = &self.patches[p as usize].mesh;
+            m.is_collapse_ok(h) && collapse_geometry_ok(m, h, target_pos, f64::INFINITY)
+        });
+        if !ok {
+            return false;
+        }
+        for (p, h) in sites {
+            self.patches[p as usize].mesh.collapse(h);
+        }
+        self.copies.remove(&remove);
+        self.alive[remove as usize] = false;
+        self.curves[c].remove(idx);
+        true
+    }
+
+    /// Moves curve vertices toward the middle of their curve neighbours, on the
+    /// reference curve, where no triangle turns over.
+    fn relax_curve(&mut self, c: usize) {
+        let n = self.curves[c].len();
+        if n < 3 {
+            return;
+        }
+        let closed = self.closed[c];
+        let targets: Vec<(u32, DVec3)> = (0..n)
+            .filter(|&i| closed || (i > 0 && i + 1 < n))
+            .filter_map(|i| {
+                let v = self.curves[c][i];
+                if self.kind[v as usize] == VertexKind::Corner {
+                    return None;
+                }
+                let (a, b) = (self.curves[c][(i + n - 1) % n], self.curves[c][(i + 1) % n]);
+                let mid = (self.pos[a as usize] + self.pos[b as usize]) * 0.5;
+                Some((v, self.curve_ref[c].project(self.pos[v as usize] + (mid - self.pos[v as usize]) * 0.5)))
+            })
+            .collect();
+        for (v, p) in targets {
+            let copies = self.copies.get(&v).cloned().unwrap_or_default();
+            let ok = copies.iter().all(|&(pi, lv)| move_ok(&self.patches[pi as usize].mesh, lv, p));
+            if ok {
+                self.pos[v as usize] = p;
+                for (pi, lv) in copies {
+                    self.patches[pi as usize].mesh.pos[lv as usize] = p;
+                }
+            }
+        }
+    }
+
+    /// The remeshed interface mesh (patches and labels of `like`).
+    pub(crate) fn into_mesh(self, like: &InterfaceMesh) -> InterfaceMesh {
+        // junction vertices keep a global numbering; interior ones follow per patch
+        let mut new_id = vec![NONE; self.pos.len()];
+        let mut positions = Vec::new();
+        for (v, &alive) in self.alive.iter().enumerate() {
+            if alive && self.copies.contains_key(&(v as u32)) {
+                new_id[v] = positions.len() as u32;
+                positions.push(self.pos[v]);
+            }
+        }
+        let mut triangles = Vec::new();
+        let mut triangle_patch = Vec::new();
+        for (p, st) in self.patches.iter().enumerate() {
+            let m = &st.mesh;
+            let mut local = vec![NONE; m.vertex_slots()];
+            for v in m.vertices() {
+                local[v as usize] = if m.locked[v as usize] {
+                    new_id[m.tag[v as usize] as usize]
+                } else {
+                    positions.push(m.pos[v as usize]);
+                    (positions.len() - 1) as u32
+                };
+            }
+            for t in m.triangles() {
+                triangles.push(t.map(|v| local[v as usize]));
+                triangle_patch.push(p as u32);
+            }
+        }
+        let junctions = self
+            .curves
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.len() >= 2)
+            .map(|(i, c)| JunctionCurve {
+                vertices: c.iter().map(|&v| new_id[v as usize]).collect(),
+                closed: self.closed[i],
+                labels: self.curve_labels[i].clone(),
+            })
+            .collect();
+        InterfaceMesh {
+            positions,
+            triangles,
+            triangle_patch,
+            patches: like.patches.clone(),
+            junctions,
+            labels: like.labels.clone(),
+            geometry: like.geometry,
+        }
+    }
+}
+
+fn build_patch(mesh: &InterfaceMesh, net: &Network, smoothed: &[DVec3], p: usize, tris: &[u32]) -> Result<PatchState> {
+    let mut local_of: HashMap<u32, u32> = HashMap::with_capacity(tris.len());
+    let mut pos = Vec::new();
+    let mut tag = Vec::new();
+    let mut local_tris = Vec::with_capacity(tris.len());
+    let mut ref_tris = Vec::with_capacity(tris.len());
+    for &t in tris {
+        let tri = mesh.triangles[t as usize];
+        ref_tris.push(tri.map(|v| smoothed[v as usize]));
+        local_tris.push(tri.map(|v| {
+            *local_of.entry(v).or_insert_with(|| {
+                pos.push(smoothed[v as usize]);
+                tag.push(v);
+                (pos.len() - 1) as u32
+            })
+        }));
+    }
+    let mut m = HalfedgeMesh::from_triangles(pos, tag, &local_tris).map_err(|e| {
+        let [a, b] = mesh.patches[p].labels;
+        Error::invalid(format!(
+            "patch {} | {} is not a manifold ({e:?}); remeshing needs valid patches (run `septa check`)",
+            mesh.label_name(a),
+            mesh.label_name(b)
+        ))
+    })?;
+    for v in 0..m.vertex_slots() {
+        m.locked[v] = net.on_junction(m.tag[v]);
+    }
+    Ok(PatchState { mesh: m, reference: SurfaceRef::new(ref_tris) })
+}
+
+/// Whether moving vertex `v` to `p` keeps every incident triangle facing the
+/// same way and of acceptable quality.
+fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3) -> bool {
+    for h in m.outgoing(v) {
+        if m.is_boundary_halfedge(h) {
+            continue;
+        }
+        let (a, b) = (m.pos[m.to(h) as usize], m.pos[m.to(m.next(h)) as usize]);
+        let old_n = (a - m.pos[v as usize]).cross(b - m.pos[v as usize]);
+        let new_n = (a - p).cross(b - p);
+        if old_n.dot(new_n) <= 0.0 || is_degenerate(p, a, b) {
+            return false;
+        }
+        let (q_old, q_new) = (triangle_quality(m.pos[v as usize], a, b), triangle_quality(p, a, b));
+        if q_new < MIN_QUALITY && q_new < q_old {
+            return false;
+        }
+    }
+    true
+}
+
+/// Whether collapsing `h` (from(h) moves to `p`, then merges into to(h)) keeps
+/// the triangles facing the same way, of acceptable quality, and its new edges
+/// no longer than `max_edge`.
+fn collapse_geometry_ok(m: &HalfedgeMesh, h: u32, p: DVec3, max_edge: f64) -> bool {
+    let (v0, v1) = (m.from(h), m.to(h));
+    for g in m.outgoing(v0) {
+        let w = m.to(g);
+        if w != v1 && (m.pos[w as usize] - p).length() > max_edge {
+            return false;
+        }
+        // an edge between two junction vertices may only appear on the boundary:
+        // inside a patch it could duplicate an edge of a neighbouring patch
+        if w != v1 && m.locked[v1 as usize] && m.locked[w as usize] && !m.is_boundary_edge(g) && !m.outgoing(v1).any(|k| m.to(k) == w) {
+            return false;
+        }
+        if m.is_boundary_halfedge(g) {
+            continue;
+        }
+        let b = m.to(m.next(g));
+        // triangles containing both v0 and v1 disappear
+        if w == v1 || b == v1 {
+            continue;
+        }
+        let (pa, pb, p0) = (m.pos[w as usize], m.pos[b as usize], m.pos[v0 as usize]);
+        let old_n = (pa - p0).cross(pb - p0);
+        let new_n = (pa - p).cross(pb - p);
+        if old_n.dot(new_n) <= 0.0 || is_degenerate(p, pa, pb) {
+            return false;
+        }
+        let (q_old, q_new) = (triangle_quality(p0, pa, pb), triangle_quality(p, pa, pb));
+        if q_new < MIN_QUALITY && q_new < q_old {
+            return false;
+        }
+    }
+    true
+}
+
+/// One B&K iteration on the interior of a patch (curves frozen).
+fn remesh_patch(st: &mut PatchState, target: f64) {
+    split_long_edges(&mut st.mesh, target);
+    collapse_short_edges(&mut st.mesh, target);
+    st.mesh.collect_garbage();
+    equalize_valences(&mut st.mesh);
+    relax_and_project(&mut st.mesh, &st.reference);
+}
+
+fn split_long_edges(m: &mut HalfedgeMesh, target: f64) {
+    let hi = 4.0 / 3.0 * target;
+    let edges: Vec<u32> = m.edges().collect();
+    for h in edges {
+        if !m.is_boundary_edge(h) && m.edge_length(h) > hi {
+            let p = (m.pos[m.from(h) as usize] + m.pos[m.to(h) as usize]) * 0.5;
+            m.split(h, p);
+        }
+    }
+}
+
+fn collapse_short_edges(m: &mut HalfedgeMesh, target: f64) {
+    let (lo, hi) = (4.0 / 5.0 * target, 4.0 / 3.0 * target);
+    let edges: Vec<u32> = m.edges().collect();
+    for e in edges {
+        if m.edge_dead(e) || m.edge_length(e) >= lo {
+            continue;
+        }
+        for h in [e, e ^ 1] {
+            let v0 = m.from(h);
+            if m.locked[v0 as usize] || m.is_boundary_vertex(v0) {
+                continue;
+            }
+            let p = m.pos[m.to(h) as usize];
+            if m.is_collapse_ok(h) && collapse_geometry_ok(m, h, p, hi) {
+                m.collapse(h);
+                break;
+            }
+        }
+    }
+}
+
+fn target_valence(m: &HalfedgeMesh, v: u32) -> i32 {
+    if m.is_boundary_vertex(v) { 4 } else { 6 }
+}
+
+fn equalize_valences(m: &mut HalfedgeMesh) {
+    let edges: Vec<u32> = m.edges().collect();
+    for h in edges {
+        if m.is_boundary_edge(h) || !m.is_flip_ok(h) {
+            continue;
+        }
+        let (a, b) = (m.from(h), m.to(h));
+        let (c, d) = (m.to(m.next(h)), m.to(m.next(h ^ 1)));
+        if m.locked[c as usize] && m.locked[d as usize] {
+            continue; // see collapse_geometry_ok: no new edge between junction vertices
+        }
+        let dev = |v: u32, delta: i32| (m.valence(v) as i32 + delta - target_valence(m, v)).abs();
+        let before = dev(a, 0) + dev(b, 0) + dev(c, 0) + dev(d, 0);
+        let after = dev(a, -1) + dev(b, -1) + dev(c, 1) + dev(d, 1);
+        if after < before && flip_geometry_ok(m, a, b, c, d) {
+            m.flip(h);
+        }
+    }
+}
+
+/// Flipping a-b into c-d keeps both triangles facing the same way and good enough.
+fn flip_geometry_ok(m: &HalfedgeMesh, a: u32, b: u32, c: u32, d: u32) -> bool {
+    let [pa, pb, pc, pd] = [a, b, c, d].map(|v| m.pos[v as usize]);
+    let n_old = (pb - pa).cross(pc - pa) + (pa - pb).cross(pd - pb);
+    let (n1, n2) = ((pd - pa).cross(pc - pa), (pc - pb).cross(pd - pb));
+    if n1.dot(n_old) <= 0.0 || n2.dot(n_old) <= 0.0 || n1.dot(n2) <= 0.0 {
+        return false;
+    }
+    if is_degenerate(pd, pc, pa) || is_degenerate(pc, pd, pb) {
+        return false;
+    }
+    let q_old = triangle_quality(pa, pb, pc).min(triangle_quality(pb, pa, pd));
+    let q_new = triangle_quality(pd, pc, pa).min(triangle_quality(pc, pd, pb));
+    q_new >= q_old.min(MIN_QUALITY)
+}
+
+/// Tangential relaxation toward the centroid of the one-ring, then projection
+/// onto the reference; moves that would turn a triangle over are skipped.
+fn relax_and_project(m: &mut HalfedgeMesh, reference: &SurfaceRef) {
+    let moves: Vec<(u32, DVec3)> = m
+        .vertices()
+        .collect::<Vec<_>>()
+        .into_iter()
+        .filter(|&v| !m.locked[v as usize] && !m.is_boundary_vertex(v))
+        .map(|v| {
+            let p = m.pos[v as usize];
+            let mut centroid = DVec3::ZERO;
+            let mut normal = DVec3::ZERO;
+            let mut k = 0.0;
+            for h in m.outgoing(v) {
+                centroid += m.pos[m.to(h) as usize];
+                k += 1.0;
+                if !m.is_boundary_halfedge(h) {
+                    normal += m.face_normal(m.face(h));
+                }
+            }
+            let n = normal.normalize_or_zero();
+            let d = centroid / k - p;
+            (v, reference.project(p + d - n * d.dot(n)))
+        })
+        .collect();
+    for (v, p) in moves {
+        if move_ok(m, v, p) {
+            m.pos[v as usize] = p;
+        }
+    }
+}

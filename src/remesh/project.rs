@@ -1,0 +1,128 @@
+//! Projection onto the smoothed reference: the nearest point on a patch's
+//! reference triangles, or on a junction curve's reference polyline (BVH
+//! nearest-point queries).
+
+use glam::DVec3;
+
+use crate::mesh::intersect::Bvh;
+
+/// Nearest point to `p` on triangle (a, b, c) (Ericson, Real-Time Collision Detection 5.1.5).
+pub fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = va + vb + vc;
+    if denom.abs() < 1e-300 {
+        return a;
+    }
+    a + ab * (vb / denom) + ac * (vc / denom)
+}
+
+/// Nearest point to `p` on segment [a, b].
+pub fn closest_on_segment(p: DVec3, a: DVec3, b: DVec3) -> DVec3 {
+    let d = b - a;
+    let l2 = d.length_squared();
+    if l2 == 0.0 {
+        return a;
+    }
+    a + d * ((p - a).dot(d) / l2).clamp(0.0, 1.0)
+}
+
+/// Reference triangles of one patch.
+pub struct SurfaceRef {
+    tris: Vec<[DVec3; 3]>,
+    bvh: Bvh,
+}
+
+impl SurfaceRef {
+    pub fn new(tris: Vec<[DVec3; 3]>) -> Self {
+        let boxes: Vec<(DVec3, DVec3)> = tris.iter().map(|t| (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]))).collect();
+        SurfaceRef { bvh: Bvh::new(&boxes), tris }
+    }
+
+    /// Nearest point of the reference surface (or `p` itself if it is empty).
+    pub fn project(&self, p: DVec3) -> DVec3 {
+        let tris = &self.tris;
+        match self.bvh.nearest(p, |i| {
+            let t = &tris[i as usize];
+            (closest_on_triangle(p, t[0], t[1], t[2]) - p).length_squared()
+        }) {
+            Some((i, _)) => {
+                let t = &tris[i as usize];
+                closest_on_triangle(p, t[0], t[1], t[2])
+            }
+            None => p,
+        }
+    }
+}
+
+/// Reference polyline of one junction curve.
+pub struct CurveRef {
+    segs: Vec<[DVec3; 2]>,
+    bvh: Bvh,
+}
+
+impl CurveRef {
+    pub fn new(points: &[DVec3], closed: bool) -> Self {
+        let mut segs: Vec<[DVec3; 2]> = points.windows(2).map(|w| [w[0], w[1]]).collect();
+        if closed && points.len() > 2 {
+            segs.push([points[points.len() - 1], points[0]]);
+        }
+        let boxes: Vec<(DVec3, DVec3)> = segs.iter().map(|s| (s[0].min(s[1]), s[0].max(s[1]))).collect();
+        CurveRef { bvh: Bvh::new(&boxes), segs }
+    }
+
+    /// Nearest point of the reference curve.
+    pub fn project(&self, p: DVec3) -> DVec3 {
+        let segs = &self.segs;
+        match self.bvh.nearest(p, |i| (closest_on_segment(p, segs[i as usize][0], segs[i as usize][1]) - p).length_squared()) {
+            Some((i, _)) => closest_on_segment(p, segs[i as usize][0], segs[i as usize][1]),
+            None => p,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn assert_near(a: DVec3, b: DVec3) {
+        assert!((a - b).length() < 1e-12, "{a} != {b}");
+    }
+
+    #[test]
+    fn nearest_points() {
+        let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::Y);
+        assert_near(closest_on_triangle(DVec3::new(0.2, 0.2, 5.0), a, b, c), DVec3::new(0.2, 0.2, 0.0));
+        assert_near(closest_on_triangle(DVec3::new(-1.0, -1.0, 0.0), a, b, c), a);
+        assert_near(closest_on_triangle(DVec3::new(2.0, 0.5, 0.0), a, b, c), b);
+        let r = SurfaceRef::new(vec![[a, b, c], [b, DVec3::new(1.0, 1.0, 0.0), c]]);
+        assert_near(r.project(DVec3::new(0.9, 0.9, 1.0)), DVec3::new(0.9, 0.9, 0.0));
+        let cr = CurveRef::new(&[a, b, DVec3::new(1.0, 1.0, 0.0)], false);
+        assert_near(cr.project(DVec3::new(1.5, 0.5, 0.0)), DVec3::new(1.0, 0.5, 0.0));
+    }
+}
