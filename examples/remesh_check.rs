@@ -18,7 +18,7 @@ fn main() {
     println!("extract {:?}: {} tris", t.elapsed(), mesh.triangle_count());
     let t = Instant::now();
     let out = remesh(&mesh, &RemeshParams { target_edge: target, ..Default::default() }).unwrap();
-    println!("remesh {:?}: {} tris {} verts", t.elapsed(), out.mesh.triangle_count(), out.mesh.vertex_count());
+    println!("remesh {:?}: {} tris {} verts, {} intersections left", t.elapsed(), out.mesh.triangle_count(), out.mesh.vertex_count(), out.intersections_left);
     for (name, mm) in [("extraction", &mesh), ("smoothed", &out.smoothed)] {
         let rep = validate(mm, &Options { intersections: true, fidelity: None });
         println!("{name}: {}", rep.check("no self-intersections").map_or(0, |c| c.failures));

@@ -272,6 +272,13 @@ impl HalfedgeMesh {
     }
 
     /// The three vertices of face `f`.
+    /// A halfedge of face `f`.
+    #[inline]
+    pub fn face_halfedge(&self, f: u32) -> u32 {
+        self.f_h[f as usize]
+    }
+
+    /// The three vertices of face `f`, in order.
     pub fn face_vertices(&self, f: u32) -> [u32; 3] {
         let h = self.f_h[f as usize];
         [self.to(self.prev(h)), self.to(h), self.to(self.next(h))]

@@ -26,6 +26,7 @@ use super::network::{Network, VertexKind};
 use super::project::{CurveRef, SurfaceRef};
 use crate::error::{Error, Result};
 use crate::extract::is_degenerate;
+use crate::mesh::intersect::self_intersections;
 use crate::mesh::{InterfaceMesh, JunctionCurve};
 
 /// Triangle quality in (0, 1]: 4√3 · area / Σ edge², 1 for an equilateral triangle.
@@ -133,20 +134,7 @@ impl Remesher {
         while i < self.curve_edges(c) {
             let (u, v) = self.curve_edge_at(c, i);
             if (self.pos[u as usize] - self.pos[v as usize]).length() > hi {
-                let mid = self.curve_ref[c].project((self.pos[u as usize] + self.pos[v as usize]) * 0.5);
-                let sites = self.curve_edge(u, v);
-                let m = self.pos.len() as u32;
-                self.pos.push(mid);
-                self.kind.push(VertexKind::Curve(c as u32));
-                self.alive.push(true);
-                for (p, h) in sites {
-                    let mesh = &mut self.patches[p as usize].mesh;
-                    let lm = mesh.split(h, mid);
-                    mesh.tag[lm as usize] = m;
-                    mesh.locked[lm as usize] = true;
-                    self.copies.entry(m).or_default().push((p, lm));
-                }
-                self.curves[c].insert(i + 1, m);
+                self.split_curve_edge(c, i);
                 i += 2;
             } else {
                 i += 1;
@@ -163,6 +151,119 @@ impl Remesher {
             i += 1;
         }
         self.relax_curve(c);
+    }
+
+    /// Splits edge `i` of curve `c` at its midpoint projected onto the
+    /// reference curve, in every patch that shares it.
+    fn split_curve_edge(&mut self, c: usize, i: usize) {
+        let (u, v) = self.curve_edge_at(c, i);
+        let mid = self.curve_ref[c].project((self.pos[u as usize] + self.pos[v as usize]) * 0.5);
+        let sites = self.curve_edge(u, v);
+        let m = self.pos.len() as u32;
+        self.pos.push(mid);
+        self.kind.push(VertexKind::Curve(c as u32));
+        self.alive.push(true);
+        for (p, h) in sites {
+            let mesh = &mut self.patches[p as usize].mesh;
+            let lm = mesh.split(h, mid);
+            mesh.tag[lm as usize] = m;
+            mesh.locked[lm as usize] = true;
+            self.copies.entry(m).or_default().push((p, lm));
+        }
+        self.curves[c].insert(i + 1, m);
+    }
+
+    /// Refines where triangles intersect: the edges of every intersecting
+    /// triangle are split at their midpoints moved onto the reference, so the
+    /// mesh approaches the (intersection-free) smoothed reference there.
+    /// Returns the number of intersecting pairs left after `rounds` rounds.
+    pub(crate) fn repair_intersections(&mut self, rounds: usize) -> usize {
+        let min_len = 0.02 * self.target;
+        for _ in 0..rounds {
+            let snap = self.snapshot();
+            let pairs = self_intersections(&snap.positions, &snap.triangles);
+            if pairs.is_empty() {
+                return 0;
+            }
+            if std::env::var("DBG").is_ok() {
+                let mut ts: Vec<u32> = pairs.iter().flat_map(|&(a, b)| [a, b]).collect();
+                ts.sort_unstable();
+                ts.dedup();
+                let area: f64 = ts.iter().map(|&t| { let [a, b, c] = snap.triangles[t as usize].map(|v| snap.positions[v as usize]); (b - a).cross(c - a).length() / 2.0 }).sum();
+                eprintln!("repair: {} pairs, {} triangles, area {area:.3}", pairs.len(), ts.len());
+            }
+            let mut faces: Vec<(u32, u32)> = pairs.iter().flat_map(|&(a, b)| [snap.origin[a as usize], snap.origin[b as usize]]).collect();
+            faces.sort_unstable();
+            faces.dedup();
+            // curve edges (global ends) and patch-interior halfedges to split
+            let mut curve_edges: Vec<(u32, u32)> = Vec::new();
+            let mut interior: Vec<(u32, u32)> = Vec::new();
+            for &(p, f) in &faces {
+                let m = &self.patches[p as usize].mesh;
+                let h0 = m.face_halfedge(f);
+                for h in [h0, m.next(h0), m.prev(h0)] {
+                    if m.edge_length(h) < min_len {
+                        continue;
+                    }
+                    if m.is_boundary_edge(h) {
+                        let (a, b) = (m.tag[m.from(h) as usize], m.tag[m.to(h) as usize]);
+                        curve_edges.push((a.min(b), a.max(b)));
+                    } else {
+                        interior.push((p, h.min(h ^ 1)));
+                    }
+                }
+            }
+            curve_edges.sort_unstable();
+            curve_edges.dedup();
+            interior.sort_unstable();
+            interior.dedup();
+            let mut split_any = false;
+            for (a, b) in curve_edges {
+                if let Some((c, i)) = self.find_curve_edge(a, b) {
+                    self.split_curve_edge(c, i);
+                    split_any = true;
+                }
+            }
+            for (p, h) in interior {
+                let st = &mut self.patches[p as usize];
+                let m = &mut st.mesh;
+                if m.edge_dead(h) || m.is_boundary_edge(h) {
+                    continue;
+                }
+                let mid = (m.pos[m.from(h) as usize] + m.pos[m.to(h) as usize]) * 0.5;
+                let v = m.split(h, mid);
+                let onto = st.reference.project(mid);
+                if std::env::var("NOPROJ").is_err() && move_ok(m, v, onto) {
+                    m.pos[v as usize] = onto;
+                }
+                split_any = true;
+            }
+            if !split_any {
+                return pairs.len();
+            }
+        }
+        let snap = self.snapshot();
+        self_intersections(&snap.positions, &snap.triangles).len()
+    }
+
+    /// The curve and index of the curve edge between global vertices `a`, `b`.
+    fn find_curve_edge(&self, a: u32, b: u32) -> Option<(usize, usize)> {
+        let in_curve = |c: usize| {
+            (0..self.curve_edges(c)).find(|&i| {
+                let (u, v) = self.curve_edge_at(c, i);
+                (u, v) == (a, b) || (u, v) == (b, a)
+            })
+        };
+        let candidates = [self.kind[a as usize], self.kind[b as usize]];
+        for k in candidates {
+            if let VertexKind::Curve(c) = k {
+                if let Some(i) = in_curve(c as usize) {
+                    return Some((c as usize, i));
+                }
+            }
+        }
+        // both ends are corners: search every curve
+        (0..self.curves.len()).find_map(|c| in_curve(c).map(|i| (c, i)))
     }
 
     fn curve_edges(&self, c: usize) -> usize {
@@ -247,8 +348,9 @@ impl Remesher {
         }
     }
 
-    /// The remeshed interface mesh (patches and labels of `like`).
-    pub(crate) fn into_mesh(self, like: &InterfaceMesh) -> InterfaceMesh {
+    /// The current triangles over global vertex ids, with the (patch, face)
+    /// each comes from.
+    fn snapshot(&self) -> Snapshot {
         // junction vertices keep a global numbering; interior ones follow per patch
         let mut new_id = vec![NONE; self.pos.len()];
         let mut positions = Vec::new();
@@ -259,7 +361,7 @@ impl Remesher {
             }
         }
         let mut triangles = Vec::new();
-        let mut triangle_patch = Vec::new();
+        let mut origin = Vec::new();
         for (p, st) in self.patches.iter().enumerate() {
             let m = &st.mesh;
             let mut local = vec![NONE; m.vertex_slots()];
@@ -271,11 +373,21 @@ impl Remesher {
                     (positions.len() - 1) as u32
                 };
             }
-            for t in m.triangles() {
-                triangles.push(t.map(|v| local[v as usize]));
-                triangle_patch.push(p as u32);
+            for f in 0..m.face_slots() as u32 {
+                if m.face_dead(f) {
+                    continue;
+                }
+                triangles.push(m.face_vertices(f).map(|v| local[v as usize]));
+                origin.push((p as u32, f));
             }
         }
+        Snapshot { positions, triangles, origin, new_id }
+    }
+
+    /// The remeshed interface mesh (patches and labels of `like`).
+    pub(crate) fn into_mesh(self, like: &InterfaceMesh) -> InterfaceMesh {
+        let Snapshot { positions, triangles, origin, new_id } = self.snapshot();
+        let triangle_patch = origin.iter().map(|o| o.0).collect();
         let junctions = self
             .curves
             .iter()
@@ -297,6 +409,13 @@ impl Remesher {
             geometry: like.geometry,
         }
     }
+}
+
+struct Snapshot {
+    positions: Vec<DVec3>,
+    triangles: Vec<[u32; 3]>,
+    origin: Vec<(u32, u32)>,
+    new_id: Vec<u32>,
 }
 
 fn build_patch(mesh: &InterfaceMesh, net: &Network, smoothed: &[DVec3], p: usize, tris: &[u32]) -> Result<PatchState> {
@@ -373,6 +492,17 @@ fn collapse_geometry_ok(m: &HalfedgeMesh, h: u32, p: DVec3, max_edge: f64) -> bo
         // triangles containing both v0 and v1 disappear
         if w == v1 || b == v1 {
             continue;
+        }
+        // (v1, w, b) must not already exist reversed (a two-triangle pillow)
+        let o = m.next(g) ^ 1;
+        if !m.is_boundary_halfedge(o) && m.to(m.next(o)) == v1 {
+            return false;
+        }
+        // a triangle on three junction vertices may be a patch's last piece
+        // between two curves; making one could flatten a small region into
+        // coincident triangles of two patches
+        if !m.locked[v0 as usize] && m.locked[v1 as usize] && m.locked[w as usize] && m.locked[b as usize] {
+            return false;
         }
         let (pa, pb, p0) = (m.pos[w as usize], m.pos[b as usize], m.pos[v0 as usize]);
         let old_n = (pa - p0).cross(pb - p0);

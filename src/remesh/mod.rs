@@ -76,7 +76,13 @@ pub struct Remeshed {
     pub mesh: InterfaceMesh,
     /// The smoothed extraction (the surface the remeshed vertices lie on).
     pub smoothed: InterfaceMesh,
+    /// Intersecting triangle pairs that local refinement could not remove
+    /// (zero unless two sheets of the reference nearly touch).
+    pub intersections_left: usize,
 }
+
+/// Rounds of local refinement where remeshed triangles intersect.
+const REPAIR_ROUNDS: usize = 12;
 
 /// Smooths and remeshes all patches of `mesh`.
 pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
@@ -85,7 +91,9 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
     let smoothed_pos = smooth::smooth(mesh, &net, params.smooth_iterations, params.max_displacement);
     let mut r = isotropic::Remesher::new(mesh, &net, &smoothed_pos, params.target_edge)?;
     r.run(params.iterations);
+    let rounds = std::env::var("SEPTA_REPAIR_ROUNDS").ok().and_then(|s| s.parse().ok()).unwrap_or(REPAIR_ROUNDS);
+    let intersections_left = r.repair_intersections(rounds);
     let out = r.into_mesh(mesh);
     let smoothed = InterfaceMesh { positions: smoothed_pos, ..mesh.clone() };
-    Ok(Remeshed { mesh: out, smoothed })
+    Ok(Remeshed { mesh: out, smoothed, intersections_left })
 }

@@ -12,6 +12,7 @@ use rayon::prelude::*;
 
 use super::network::{Network, VertexKind};
 use crate::mesh::InterfaceMesh;
+use crate::mesh::intersect::self_intersections;
 
 /// Taubin's pass factors: a shrinking step λ and an inflating step μ (|μ| > λ).
 const LAMBDA: f64 = 0.5;
@@ -122,5 +123,36 @@ pub fn smooth(mesh: &InterfaceMesh, net: &Network, iterations: u32, max_displace
             }
         }
     }
+    untangle(&mesh.triangles, start, &mut pos);
     pos
+}
+
+/// Rounds of [`untangle`] before the last, which restores start positions.
+const UNTANGLE_ROUNDS: usize = 6;
+
+/// Pulls the vertices of self-intersecting triangles back toward their start
+/// positions (half the displacement per round; fully in the last round), so
+/// the smoothed surface is as free of self-intersections as the extraction.
+///
+/// Where two sheets are closer than the smoothing moves them (thin walls, small
+/// gaps) smoothing alone can make them cross; only the vertices involved are
+/// held back, the rest keep their smoothed positions.
+pub(crate) fn untangle(tris: &[[u32; 3]], start: &[DVec3], pos: &mut [DVec3]) -> usize {
+    let mut held = 0;
+    for round in 0..=UNTANGLE_ROUNDS {
+        let pairs = self_intersections(pos, tris);
+        if pairs.is_empty() {
+            break;
+        }
+        let mut verts: Vec<u32> = pairs.iter().flat_map(|&(a, b)| tris[a as usize].into_iter().chain(tris[b as usize])).collect();
+        verts.sort_unstable();
+        verts.dedup();
+        let keep = if round == UNTANGLE_ROUNDS { 0.0 } else { 0.5 };
+        for &v in &verts {
+            let v = v as usize;
+            pos[v] = start[v] + (pos[v] - start[v]) * keep;
+        }
+        held += verts.len();
+    }
+    held
 }
