@@ -427,6 +427,22 @@ proptest! {
     }
 }
 
+/// Noise volumes that once gave self-intersecting mixed L surfaces: a 9-cycle
+/// (three voxels pairwise sharing an edge, two edges joined) whose
+/// minimum-area triangulation folded over itself.
+#[test]
+fn mixed_nine_cycles_do_not_fold() {
+    for (d, seed) in [
+        ([8, 6, 3], 3249003234213868232u64),
+        ([4, 4, 7], 10161961852642899523),
+    ] {
+        let v = random_values(d, seed, 5);
+        let s = run(&v, d, &opts(2.0, Mode::Mixed, Decompose::L, false));
+        assert!(s.stats.cycles_by_length[9] > 0, "{d:?} seed {seed}");
+        assert_valid(&s, true, &format!("{d:?} seed {seed}"));
+    }
+}
+
 #[test]
 fn undisplaced_surfaces_of_smooth_volumes_do_not_self_intersect() {
     for seed in 0..6 {

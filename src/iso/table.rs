@@ -25,10 +25,13 @@
 //!
 //! **L triangulation.** Each cycle is cut into N − 2 triangles on its own points
 //! (no extra point): the minimum-area triangulation of the cycle's undisplaced
-//! support points (the face centres) among those that respect how the two ends
-//! of an ambiguous edge share the diagonals between its four faces (see
-//! `l_triangles`). Ties (planar cycles) go to the lowest split index, so the
-//! table is deterministic.
+//! support points (the face centres) among those whose triangles do not
+//! intersect each other and that respect how the two ends of an ambiguous
+//! edge share the diagonals between its four faces (see `l_triangles`). Ties
+//! (planar cycles) go to the lowest split index, so the table is
+//! deterministic. Unit tests prove the result intersection-free: every cell
+//! alone and every two neighbouring cells, for every configuration mixed mode
+//! can produce.
 
 use std::sync::OnceLock;
 
@@ -129,7 +132,7 @@ pub(crate) struct Table {
 }
 
 impl Table {
-    /// The table (built on first use, about a millisecond).
+    /// The table (built on first use, a few milliseconds).
     pub(crate) fn get() -> &'static Table {
         static T: OnceLock<Table> = OnceLock::new();
         T.get_or_init(build)
@@ -257,33 +260,45 @@ fn is_planar(cycle: &[u8]) -> bool {
 /// L triangles of one cycle (as quarter-face ids) at a vertex with the given
 /// ambiguous half-edges.
 ///
-/// The four faces around an ambiguous edge lie in the stars of both ends of
-/// the edge, and a cycle at either end may pass through all four (always when
-/// the edge is joined; when it is separated, if the two voxels meet elsewhere
-/// in the cell). If both ends used the same diagonal between two of them, it
-/// would carry four triangles; if both ends had a triangle on three of them
-/// (they are coplanar), the two would overlap. So:
+/// Two things can make a triangulation of a cell cycle intersect the surface:
 ///
-/// 1. Preferably a cycle uses no diagonal between two faces of an ambiguous
-///    edge at all. Then a principal plane through the voxel centres cuts the
-///    surface exactly in the DICONEX contours of that slice (the segments in
-///    the plane are cycle sides). Every cycle of the global modes, and every
-///    mixed cycle up to length 7, has such a triangulation.
-/// 2. Otherwise (some 8-, 9- and 12-cycles of mixed mode) the two ends share
-///    the six segments: the four sides of the ring around the edge (faces of
-///    different axes) belong to the upper end (where the half-edge points to
-///    −axis), the two segments across the edge (faces of the same axis) to the
-///    lower end. A triangle on three of the faces needs one segment of each
-///    kind, so neither end has one, and no segment is used from both ends.
+/// - **Its own triangles.** The long cycles of mixed mode (8, 9 and 12 points)
+///   are far from planar, and the minimum-area triangulation of a skew polygon
+///   can fold over itself: for the 9-cycle of three cells that pairwise share
+///   an edge (two of the three edges joined), the minimum-area triangulation
+///   has two pairs of crossing triangles. So the triangulation is the
+///   minimum-area one *among those whose triangles do not intersect each
+///   other* (see `min_area_embedded`).
+/// - **The triangles of the other end of an ambiguous edge.** The four faces
+///   around an ambiguous edge lie in the stars of both ends of the edge, and a
+///   cycle at either end may pass through all four (always when the edge is
+///   joined; when it is separated, if the two voxels meet elsewhere in the
+///   cell). If both ends used the same diagonal between two of them, it would
+///   carry four triangles; if both ends had a triangle on three of them (they
+///   are coplanar), the two would overlap. So:
+///   1. preferably a cycle uses no diagonal between two faces of an ambiguous
+///      edge at all. Then a principal plane through the voxel centres cuts the
+///      surface exactly in the DICONEX contours of that slice (the segments in
+///      the plane are cycle sides). Every cycle of the global modes, and every
+///      mixed cycle up to length 7, has such a triangulation;
+///   2. otherwise (some 8-, 9- and 12-cycles of mixed mode) the two ends share
+///      the six segments: the four sides of the ring around the edge (faces of
+///      different axes) belong to the upper end (where the half-edge points to
+///      −axis), the two segments across the edge (faces of the same axis) to
+///      the lower end. A triangle on three of the faces needs one segment of
+///      each kind, so neither end has one, and no segment is used from both
+///      ends.
 ///
-/// Every configuration mixed mode can produce is covered by 1 or 2 (a unit
-/// test checks it); unrealizable ones fall back to the unconstrained minimum.
+/// Every configuration mixed mode can produce is covered by 1 or 2 (unit tests
+/// check it, and that no cell and no two neighbouring cells of any realizable
+/// configuration intersect); unrealizable ones fall back to the unconstrained
+/// minimum.
 fn l_triangles(cycle: &[u8], ambiguous: u8) -> Vec<[u8; 3]> {
     let pts: Vec<DVec3> = cycle.iter().map(|&f| face_point(f as usize)).collect();
-    let tris = constrained_min_area(&pts, |i, j| chord_allowed(cycle, ambiguous, i, j, false))
-        .or_else(|| constrained_min_area(&pts, |i, j| chord_allowed(cycle, ambiguous, i, j, true)))
-        .or_else(|| constrained_min_area(&pts, |_, _| true))
-        .expect("a cell cycle has a non-degenerate triangulation");
+    let tris = min_area_embedded(&pts, |i, j| chord_allowed(cycle, ambiguous, i, j, false))
+        .or_else(|| min_area_embedded(&pts, |i, j| chord_allowed(cycle, ambiguous, i, j, true)))
+        .or_else(|| min_area_embedded(&pts, |_, _| true))
+        .expect("a cell cycle has an embedded triangulation");
     tris.into_iter().map(|t| t.map(|i| cycle[i])).collect()
 }
 
@@ -307,54 +322,165 @@ fn chord_allowed(cycle: &[u8], ambiguous: u8, i: usize, j: usize, shared: bool) 
     })
 }
 
-/// Minimum-area triangulation of a closed polygon without degenerate
-/// triangles that uses only allowed diagonals (dynamic programming over the
-/// polygon; ties go to the lowest split index). `None` if there is none.
-fn constrained_min_area(
+/// Whether triangle `t` intersects one of `tris` (beyond what they share).
+fn hits_any(p: &[DVec3], tris: &[[usize; 3]], t: [usize; 3]) -> bool {
+    let t = t.map(|v| v as u32);
+    tris.iter()
+        .any(|s| crate::mesh::intersect::triangles_intersect(p, s.map(|v| v as u32), t))
+}
+
+/// Whether two triangles of one triangulation intersect.
+fn folds(p: &[DVec3], tris: &[[usize; 3]]) -> bool {
+    (1..tris.len()).any(|k| hits_any(p, &tris[..k], tris[k]))
+}
+
+/// Minimum areas of the sub-polygons `i..=j` (closed by the chord `i j`)
+/// triangulated without degenerate triangles and with allowed diagonals only
+/// (infinite if impossible), and the apex of the best triangle on each chord
+/// (ties go to the lowest apex).
+struct AreaTable {
+    n: usize,
+    cost: Vec<f64>,
+    split: Vec<usize>,
+}
+
+impl AreaTable {
+    fn new(p: &[DVec3], allowed: &impl Fn(usize, usize) -> bool) -> Self {
+        let n = p.len();
+        let mut cost = vec![f64::INFINITY; n * n];
+        let mut split = vec![usize::MAX; n * n];
+        for i in 0..n - 1 {
+            cost[i * n + i + 1] = 0.0;
+        }
+        for len in 2..n {
+            for i in 0..n - len {
+                let j = i + len;
+                if !allowed(i, j) {
+                    continue;
+                }
+                for k in i + 1..j {
+                    if is_degenerate(p[i], p[k], p[j]) {
+                        continue;
+                    }
+                    let c = cost[i * n + k] + cost[k * n + j] + tri_area(p, [i, k, j]);
+                    if c < cost[i * n + j] - 1e-12 {
+                        cost[i * n + j] = c;
+                        split[i * n + j] = k;
+                    }
+                }
+            }
+        }
+        AreaTable { n, cost, split }
+    }
+
+    #[inline]
+    fn cost(&self, i: usize, j: usize) -> f64 {
+        self.cost[i * self.n + j]
+    }
+
+    /// The minimum triangulation of the whole polygon, if there is one.
+    fn best(&self) -> Option<Vec<[usize; 3]>> {
+        let n = self.n;
+        if !self.cost(0, n - 1).is_finite() {
+            return None;
+        }
+        let mut out = Vec::with_capacity(n - 2);
+        let mut stack = vec![(0, n - 1)];
+        while let Some((i, j)) = stack.pop() {
+            if j - i < 2 {
+                continue;
+            }
+            let k = self.split[i * n + j];
+            out.push([i, k, j]);
+            stack.push((i, k));
+            stack.push((k, j));
+        }
+        Some(out)
+    }
+}
+
+fn tri_area(p: &[DVec3], [a, b, c]: [usize; 3]) -> f64 {
+    0.5 * (p[b] - p[a]).cross(p[c] - p[a]).length()
+}
+
+/// The minimum-area triangulation of a closed polygon whose triangles are not
+/// degenerate, use only allowed diagonals and do not intersect each other
+/// (sorted triangles of polygon positions); `None` if there is none.
+///
+/// The dynamic-programming minimum when it is embedded (the common case);
+/// otherwise a depth-first branch and bound over all triangulations that
+/// rejects a triangle as soon as it hits one already placed and prunes with
+/// the dynamic-programming minima of the open sub-polygons (a lower bound).
+/// Deterministic: apices are tried in increasing order and only a strictly
+/// smaller area replaces the best found.
+fn min_area_embedded(
     p: &[DVec3],
     allowed: impl Fn(usize, usize) -> bool,
 ) -> Option<Vec<[usize; 3]>> {
-    let n = p.len();
-    let mut cost = vec![f64::INFINITY; n * n];
-    let mut split = vec![usize::MAX; n * n];
-    for i in 0..n - 1 {
-        cost[i * n + i + 1] = 0.0;
+    let table = AreaTable::new(p, &allowed);
+    let mut best = table.best()?;
+    if folds(p, &best) {
+        let mut search = Search {
+            p,
+            table: &table,
+            best: None,
+            best_area: f64::INFINITY,
+        };
+        let mut tris = Vec::with_capacity(p.len() - 2);
+        search.run(&mut vec![(0, p.len() - 1)], &mut tris, 0.0);
+        best = search.best?;
     }
-    for len in 2..n {
-        for i in 0..n - len {
-            let j = i + len;
-            if !allowed(i, j) {
+    best.sort_unstable();
+    Some(best)
+}
+
+/// State of the branch and bound of [`min_area_embedded`].
+struct Search<'a> {
+    p: &'a [DVec3],
+    table: &'a AreaTable,
+    best: Option<Vec<[usize; 3]>>,
+    best_area: f64,
+}
+
+impl Search<'_> {
+    /// Triangulates the open chords `open` given the placed `tris` of total `area`.
+    fn run(&mut self, open: &mut Vec<(usize, usize)>, tris: &mut Vec<[usize; 3]>, area: f64) {
+        let bound = area
+            + open
+                .iter()
+                .map(|&(i, j)| self.table.cost(i, j))
+                .sum::<f64>();
+        if bound >= self.best_area - 1e-12 {
+            return;
+        }
+        let Some((i, j)) = open.pop() else {
+            self.best_area = area;
+            self.best = Some(tris.clone());
+            return;
+        };
+        for k in i + 1..j {
+            let t = [i, k, j];
+            // sub-chords must be triangulable (this also checks they are allowed)
+            if !self.table.cost(i, k).is_finite()
+                || !self.table.cost(k, j).is_finite()
+                || is_degenerate(self.p[i], self.p[k], self.p[j])
+                || hits_any(self.p, tris, t)
+            {
                 continue;
             }
-            for k in i + 1..j {
-                if is_degenerate(p[i], p[k], p[j]) {
-                    continue;
-                }
-                let area = 0.5 * (p[k] - p[i]).cross(p[j] - p[i]).length();
-                let c = cost[i * n + k] + cost[k * n + j] + area;
-                if c < cost[i * n + j] - 1e-12 {
-                    cost[i * n + j] = c;
-                    split[i * n + j] = k;
+            let depth = open.len();
+            for (a, b) in [(i, k), (k, j)] {
+                if b - a >= 2 {
+                    open.push((a, b));
                 }
             }
+            tris.push(t);
+            self.run(open, tris, area + tri_area(self.p, t));
+            tris.pop();
+            open.truncate(depth);
         }
+        open.push((i, j));
     }
-    if !cost[n - 1].is_finite() {
-        return None;
-    }
-    let mut out = Vec::with_capacity(n - 2);
-    let mut stack = vec![(0, n - 1)];
-    while let Some((i, j)) = stack.pop() {
-        if j - i < 2 {
-            continue;
-        }
-        let k = split[i * n + j];
-        out.push([i, k, j]);
-        stack.push((i, k));
-        stack.push((k, j));
-    }
-    out.sort_unstable();
-    Some(out)
 }
 
 /// A cycle type while the table is built: length, canonical form, example
@@ -373,8 +499,10 @@ fn build() -> Table {
     let forms = collect_forms(&raw);
     let types = name_types(&forms);
     let mut canonical_entries = vec![CellEntry::default(); 256 * 64];
+    let mut memo = std::collections::HashMap::new();
     for c in &raw {
-        canonical_entries[(c.mask as usize) << 6 | c.connect as usize] = make_entry(c, &forms);
+        canonical_entries[(c.mask as usize) << 6 | c.connect as usize] =
+            make_entry(c, &forms, &mut memo);
     }
     // Non-canonical connect sets copy the entry of their ambiguous part.
     let entries = (0..256 * 64)
@@ -454,7 +582,13 @@ fn name_types(forms: &[Form]) -> Vec<CycleType> {
 }
 
 /// The table entry of one configuration.
-fn make_entry(cfg: &Config, forms: &[Form]) -> CellEntry {
+/// `memo`: L triangles by cycle and the ambiguous edges it passes (many
+/// configurations share cycles).
+fn make_entry(
+    cfg: &Config,
+    forms: &[Form],
+    memo: &mut std::collections::HashMap<(Vec<u8>, u8), Vec<[u8; 3]>>,
+) -> CellEntry {
     let mut e = CellEntry::default();
     let (mut nf, mut nt) = (0usize, 0usize);
     for (i, (c, form)) in cfg.cycles.iter().enumerate() {
@@ -465,7 +599,17 @@ fn make_entry(cfg: &Config, forms: &[Form]) -> CellEntry {
             .iter()
             .position(|f| f.1 == *form)
             .map_or(NO_TYPE, |t| t as u8);
-        for t in l_triangles(c, ambiguous_edges(cfg.mask)) {
+        // only the ambiguous edges whose faces the cycle meets matter
+        let amb = ambiguous_edges(cfg.mask);
+        let relevant = (0..6)
+            .filter(|&e| {
+                amb >> e & 1 == 1 && edge_star(e).1.iter().any(|&f| c.contains(&(f as u8)))
+            })
+            .fold(0u8, |m, e| m | 1 << e);
+        let tris = memo
+            .entry((c.clone(), relevant))
+            .or_insert_with(|| l_triangles(c, relevant));
+        for &t in tris.iter() {
             e.tris[nt] = t;
             nt += 1;
         }
@@ -625,27 +769,170 @@ mod tests {
             }
         }
     }
-}
-#[cfg(test)]
-mod dbg {
-    use super::*;
-    #[test]
-    fn dbg_cell_intersections() {
-        let t = Table::get();
-        let pos: Vec<DVec3> = (0..12).map(face_point).collect();
-        let mut bad = std::collections::BTreeMap::new();
-        for mask in 0..=255u8 {
-            let amb = ambiguous_edges(mask);
-            for connect in (0..64u8).filter(|&c| c & !amb == 0 && realizable(mask, c)) {
-                let e = t.entry(mask, connect);
-                let tris: Vec<[u32; 3]> = e.all_tris().iter().map(|x| x.map(|f| f as u32)).collect();
-                let hits = crate::mesh::intersect::self_intersections(&pos, &tris);
-                if !hits.is_empty() {
-                    let lens: Vec<usize> = (0..e.cycles as usize).map(|i| e.cycle(i).len()).collect();
-                    *bad.entry(lens.clone()).or_insert(0) += 1;
+
+    /// Undisplaced triangles of a cell entry at grid vertex `at`, as doubled
+    /// integer coordinates of the support points.
+    fn cell_tris(e: &CellEntry, at: [i32; 3]) -> Vec<[[i32; 3]; 3]> {
+        e.all_tris()
+            .iter()
+            .map(|t| {
+                t.map(|f| {
+                    let o = face_center_offset(f as usize);
+                    [0, 1, 2].map(|a| 2 * at[a] + o[a])
+                })
+            })
+            .collect()
+    }
+
+    /// Problems of a set of triangles: intersections (the library's check) or
+    /// an edge used twice in one direction (more than two triangles on it, or
+    /// two on one side).
+    fn embedding_problem(tris: &[[[i32; 3]; 3]]) -> Option<String> {
+        let mut keys: Vec<[i32; 3]> = Vec::new();
+        let idx: Vec<[u32; 3]> = tris
+            .iter()
+            .map(|t| {
+                t.map(|k| match keys.iter().position(|x| *x == k) {
+                    Some(i) => i as u32,
+                    None => {
+                        keys.push(k);
+                        keys.len() as u32 - 1
+                    }
+                })
+            })
+            .collect();
+        let pos: Vec<DVec3> = keys
+            .iter()
+            .map(|k| DVec3::new(k[0] as f64, k[1] as f64, k[2] as f64) * 0.5)
+            .collect();
+        let hits = crate::mesh::intersect::self_intersections(&pos, &idx);
+        if !hits.is_empty() {
+            return Some(format!("intersecting triangles {hits:?}"));
+        }
+        let mut directed = std::collections::HashSet::new();
+        for t in &idx {
+            for k in 0..3 {
+                if !directed.insert((t[k], t[(k + 1) % 3])) {
+                    return Some(format!("edge {}-{} used twice", t[k], t[(k + 1) % 3]));
                 }
             }
         }
-        eprintln!("{bad:?}");
+        None
+    }
+
+    /// Every configuration mixed mode can produce (so every configuration of
+    /// the global modes too): the L triangles of one cell never intersect.
+    #[test]
+    fn every_realizable_cell_is_embedded() {
+        let table = Table::get();
+        let mut cells = 0;
+        for mask in 0..=255u8 {
+            let amb = ambiguous_edges(mask);
+            for connect in (0..64u8).filter(|&c| c & !amb == 0 && realizable(mask, c)) {
+                let e = table.entry(mask, connect);
+                if let Some(p) = embedding_problem(&cell_tris(e, [0; 3])) {
+                    panic!(
+                        "mask {mask:08b} connect {connect:06b}: {p}: {:?}",
+                        e.all_tris()
+                    );
+                }
+                cells += 1;
+            }
+        }
+        assert!(cells > 256);
+    }
+
+    /// The regression: three voxels pairwise sharing an edge, two of the
+    /// edges joined, give a 9-cycle whose minimum-area triangulation folds
+    /// over itself (two pairs of crossing triangles); the table must not use it.
+    #[test]
+    fn the_folding_nine_cycle_is_triangulated_without_folds() {
+        let mask = 0b0110_1000; // octants 3, 5, 6
+        let mut nines = 0;
+        for connect in 0..64u8 {
+            let star = trace_per_edge(mask, connect);
+            let e = Table::get().entry(mask, connect);
+            for i in (0..e.cycles as usize).filter(|&i| e.cycle(i).len() == 9) {
+                let c = e.cycle(i);
+                let pts: Vec<DVec3> = c.iter().map(|&f| face_point(f as usize)).collect();
+                let tris: Vec<[usize; 3]> = e
+                    .cycle_tris(i)
+                    .iter()
+                    .map(|t| t.map(|f| c.iter().position(|&g| g == f).unwrap()))
+                    .collect();
+                assert!(!folds(&pts, &tris), "connect {connect:06b}: {tris:?}");
+                assert_eq!(star.cycle(i).len(), 9);
+                nines += 1;
+            }
+        }
+        assert!(nines >= 3);
+        // and without the search, the minimum under the sharing rule folds
+        // (so the search is what makes the difference)
+        let amb = ambiguous_edges(mask);
+        let folding = (0..64u8)
+            .filter(|&connect| {
+                let e = Table::get().entry(mask, connect);
+                (0..e.cycles as usize).any(|i| {
+                    let c = e.cycle(i);
+                    let pts: Vec<DVec3> = c.iter().map(|&f| face_point(f as usize)).collect();
+                    let allowed = |a, b| chord_allowed(c, amb, a, b, true);
+                    c.len() == 9
+                        && AreaTable::new(&pts, &allowed)
+                            .best()
+                            .is_some_and(|t| folds(&pts, &t))
+                })
+            })
+            .count();
+        assert!(folding > 0);
+    }
+
+    /// Two neighbouring grid vertices share the four faces around the edge
+    /// between them. For every activity pattern of their 2×2×3 cells, along
+    /// each axis, and every pair of realizable joining sets that agree on the
+    /// shared edge (a superset of what mixed mode produces; both global modes
+    /// included), the L triangles of the two cells together are embedded.
+    /// With [`every_realizable_cell_is_embedded`] this proves that
+    /// undisplaced L surfaces never self-intersect: cells further apart have
+    /// disjoint cubes but for one shared support point.
+    #[test]
+    fn neighbouring_cells_never_intersect() {
+        let table = Table::get();
+        let mut pairs = 0;
+        for axis in 0..3 {
+            let (b, c) = crate::star::other_axes(axis);
+            let mut off = [0; 3];
+            off[axis] = 1;
+            for pat in 0..4096u32 {
+                // octant `o` of the vertex shifted by `s` along the axis
+                let mask_at = |s: usize| -> u8 {
+                    (0..8)
+                        .filter(|&o| {
+                            let x = (o >> axis & 1) + s;
+                            pat >> (4 * x + (o >> b & 1) + 2 * (o >> c & 1)) & 1 == 1
+                        })
+                        .fold(0u8, |m, o| m | 1 << o)
+                };
+                let (ma, mb) = (mask_at(0), mask_at(1));
+                let (aa, ab) = (ambiguous_edges(ma), ambiguous_edges(mb));
+                let (ea, eb) = (2 * axis + 1, 2 * axis);
+                for ca in (0..64u8).filter(|&x| x & !aa == 0 && realizable(ma, x)) {
+                    for cb in (0..64u8).filter(|&x| x & !ab == 0 && realizable(mb, x)) {
+                        if aa >> ea & 1 == 1 && (ca >> ea & 1) != (cb >> eb & 1) {
+                            continue;
+                        }
+                        let mut tris = cell_tris(table.entry(ma, ca), [0; 3]);
+                        tris.extend(cell_tris(table.entry(mb, cb), off));
+                        if let Some(p) = embedding_problem(&tris) {
+                            panic!(
+                                "axis {axis}: mask {ma:08b} connect {ca:06b} next to \
+                                 mask {mb:08b} connect {cb:06b}: {p}"
+                            );
+                        }
+                        pairs += 1;
+                    }
+                }
+            }
+        }
+        assert!(pairs > 3 * 4096);
     }
 }
