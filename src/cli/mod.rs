@@ -4,7 +4,9 @@
 //! a terminal or with `-q`.
 
 mod check;
+mod contour;
 mod extract;
+mod hyper;
 mod info;
 mod inspect;
 mod iso;
@@ -66,6 +68,8 @@ enum Command {
     Check(check::CheckArgs),
     /// VESTA iso-surface of a grayscale volume (CT, MR, simulation data), with N-cycle statistics.
     Iso(iso::IsoArgs),
+    /// DICONEX contours of a 2-D image or a volume slice: iso-contours, or label-pair polylines.
+    Contour(contour::ContourArgs),
 }
 
 /// Reading a volume: the file, an optional config, and the description of raw files.
@@ -174,6 +178,8 @@ pub fn main() -> ExitCode {
         Command::Extract(a) => extract::run(a, &ui),
         Command::Check(a) => check::run(a, &ui),
         Command::Iso(a) => iso::run(a, &ui),
+        Command::Hyper(a) => hyper::run(a, &ui),
+        Command::Contour(a) => contour::run(a, &ui),
     };
     match result {
         Ok(code) => code,
