@@ -6,7 +6,6 @@
 mod check;
 mod contour;
 mod extract;
-mod hyper;
 mod info;
 mod inspect;
 mod iso;
@@ -178,7 +177,6 @@ pub fn main() -> ExitCode {
         Command::Extract(a) => extract::run(a, &ui),
         Command::Check(a) => check::run(a, &ui),
         Command::Iso(a) => iso::run(a, &ui),
-        Command::Hyper(a) => hyper::run(a, &ui),
         Command::Contour(a) => contour::run(a, &ui),
     };
     match result {
