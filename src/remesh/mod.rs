@@ -49,7 +49,7 @@ pub struct RemeshParams {
 
 impl Default for RemeshParams {
     fn default() -> Self {
-        RemeshParams { target_edge: 2.0, smooth_iterations: 10, max_displacement: 0.5, iterations: 5 }
+        RemeshParams { target_edge: 2.0, smooth_iterations: 10, max_displacement: 0.5, iterations: 8 }
     }
 }
 
@@ -76,24 +76,22 @@ pub struct Remeshed {
     pub mesh: InterfaceMesh,
     /// The smoothed extraction (the surface the remeshed vertices lie on).
     pub smoothed: InterfaceMesh,
-    /// Intersecting triangle pairs that local refinement could not remove
-    /// (zero unless two sheets of the reference nearly touch).
-    pub intersections_left: usize,
 }
 
-/// Rounds of local refinement where remeshed triangles intersect.
-const REPAIR_ROUNDS: usize = 12;
+/// How far (in voxels) a remeshed triangle's centroid may lie from the
+/// smoothed reference: keeps chords from cutting across thin structures.
+const FIT_VOXELS: f64 = 0.3;
+
 
 /// Smooths and remeshes all patches of `mesh`.
 pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
     params.check()?;
     let net = network::Network::new(mesh);
     let smoothed_pos = smooth::smooth(mesh, &net, params.smooth_iterations, params.max_displacement);
-    let mut r = isotropic::Remesher::new(mesh, &net, &smoothed_pos, params.target_edge)?;
+    let voxel = mesh.geometry.spacing().iter().cloned().fold(f64::INFINITY, f64::min);
+    let mut r = isotropic::Remesher::new(mesh, &net, &smoothed_pos, params.target_edge, FIT_VOXELS * voxel)?;
     r.run(params.iterations);
-    let rounds = std::env::var("SEPTA_REPAIR_ROUNDS").ok().and_then(|s| s.parse().ok()).unwrap_or(REPAIR_ROUNDS);
-    let intersections_left = r.repair_intersections(rounds);
     let out = r.into_mesh(mesh);
     let smoothed = InterfaceMesh { positions: smoothed_pos, ..mesh.clone() };
-    Ok(Remeshed { mesh: out, smoothed, intersections_left })
+    Ok(Remeshed { mesh: out, smoothed })
 }

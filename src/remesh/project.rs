@@ -64,6 +64,28 @@ impl SurfaceRef {
         SurfaceRef { bvh: Bvh::new(&boxes), tris }
     }
 
+    /// Nearest point of the reference surface and the unit normal of the
+    /// triangle it lies on (`None` if the reference is empty).
+    pub fn nearest(&self, p: DVec3) -> Option<(DVec3, DVec3)> {
+        let tris = &self.tris;
+        let (i, _) = self.bvh.nearest(p, |i| {
+            let t = &tris[i as usize];
+            (closest_on_triangle(p, t[0], t[1], t[2]) - p).length_squared()
+        })?;
+        let t = &tris[i as usize];
+        Some((closest_on_triangle(p, t[0], t[1], t[2]), (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero()))
+    }
+
+    /// Whether triangle (a, b, c) follows the reference: its centroid within
+    /// `eps` of it, and not facing against it there.
+    pub fn fits(&self, a: DVec3, b: DVec3, c: DVec3, eps: f64) -> bool {
+        let centroid = (a + b + c) / 3.0;
+        match self.nearest(centroid) {
+            Some((q, n)) => (q - centroid).length() <= eps && n.dot((b - a).cross(c - a)) > 0.0,
+            None => true,
+        }
+    }
+
     /// Nearest point of the reference surface (or `p` itself if it is empty).
     pub fn project(&self, p: DVec3) -> DVec3 {
         let tris = &self.tris;
