@@ -10,10 +10,10 @@ use super::ui::{Ui, count, secs, table};
 use super::{VolumeArgs, load, show};
 use septa::Result;
 use septa::extract::{Decompose, ExtractOptions, Surface, extract, label_infos};
+use septa::mesh::quality::{QualityOptions, quality};
 use septa::mesh::stats::patch_stats;
 use septa::mesh::validate::{Options, validate};
 use septa::output::{Formats, check_outdir, patch_path, write_outdir};
-use septa::mesh::quality::{QualityOptions, quality};
 use septa::preprocess::preprocess;
 use septa::remesh::{RemeshParams, remesh};
 
@@ -53,7 +53,7 @@ pub struct ExtractArgs {
     /// How N-cycles are cut into triangles.
     #[arg(long, value_enum, default_value = "l", ignore_case = true)]
     pub decompose: DecomposeArg,
-    /// Which surface to extract.
+    /// Which surface to extract (`faces` is written as is, never remeshed).
     #[arg(long, value_enum, default_value = "vesta")]
     pub surface: SurfaceArg,
     /// Extra formats besides PLY: obj (all patches, one group each), vtp (ParaView),
@@ -81,16 +81,33 @@ pub struct ExtractArgs {
 }
 
 /// Remeshing parameters from the command line, else the config, else the defaults.
-fn remesh_params(args: &ExtractArgs, cfg: &septa::config::RemeshOptions, mesh: &septa::mesh::InterfaceMesh) -> Option<RemeshParams> {
-    if args.no_remesh || cfg.enabled == Some(false) {
+fn remesh_params(
+    args: &ExtractArgs,
+    cfg: &septa::config::RemeshOptions,
+    geometry: &septa::volume::Geometry,
+) -> Option<RemeshParams> {
+    // the primal faces are the exact voxel boundary, asked for as such
+    if args.no_remesh || cfg.enabled == Some(false) || matches!(args.surface, SurfaceArg::Faces) {
         return None;
     }
     let d = RemeshParams::default();
     Some(RemeshParams {
-        target_edge: args.target_edge.or(cfg.target_edge).unwrap_or_else(|| RemeshParams::default_target(mesh)),
-        smooth_iterations: args.smooth_iterations.or(cfg.smooth_iterations).unwrap_or(d.smooth_iterations),
-        max_displacement: args.max_displacement.or(cfg.max_displacement).unwrap_or(d.max_displacement),
-        iterations: args.remesh_iterations.or(cfg.iterations).unwrap_or(d.iterations),
+        target_edge: args
+            .target_edge
+            .or(cfg.target_edge)
+            .unwrap_or_else(|| RemeshParams::default_target(geometry)),
+        smooth_iterations: args
+            .smooth_iterations
+            .or(cfg.smooth_iterations)
+            .unwrap_or(d.smooth_iterations),
+        max_displacement: args
+            .max_displacement
+            .or(cfg.max_displacement)
+            .unwrap_or(d.max_displacement),
+        iterations: args
+            .remesh_iterations
+            .or(cfg.iterations)
+            .unwrap_or(d.iterations),
     })
 }
 
@@ -103,6 +120,10 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
     timings.push(("read", stage.done()));
     let v = &loaded.volume;
     let r = &loaded.resolved;
+    let params = remesh_params(args, &loaded.config.remesh, v.geometry());
+    if let Some(p) = &params {
+        p.validate()?;
+    }
 
     let stage = ui.stage("finding and fattening critical elements");
     let pre = preprocess(v, r);
@@ -135,12 +156,20 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
     timings.push(("extract", stage.done()));
     let extraction_size = (mesh.triangle_count(), mesh.vertex_count());
 
-    let params = remesh_params(args, &loaded.config.remesh, &mesh);
     let (mesh, remeshed) = match params {
         Some(params) => {
-            let stage = ui.stage(&format!("smoothing and remeshing to {:.2} mm edges", params.target_edge));
+            let stage = ui.stage(&format!(
+                "smoothing and remeshing to {:.2} mm edges",
+                params.target_edge
+            ));
             let out = remesh(&mesh, &params)?;
-            let q = quality(&out.mesh, Some(&mesh), &QualityOptions { target_edge_mm: params.target_edge });
+            let q = quality(
+                &out.mesh,
+                Some(&mesh),
+                &QualityOptions {
+                    target_edge_mm: params.target_edge,
+                },
+            );
             timings.push(("remesh", stage.done()));
             (out.mesh, Some((params, q)))
         }
@@ -154,7 +183,11 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
             intersections: args.intersections || remeshed.is_some(),
             // remeshed vertices leave the voxel grid by design; their distance
             // to the extraction is in the quality report instead
-            fidelity: if remeshed.is_some() { None } else { Some((&pre.refined, 0.5)) },
+            fidelity: if remeshed.is_some() {
+                None
+            } else {
+                Some((&pre.refined, 0.5))
+            },
         },
     );
     timings.push(("validate", stage.done()));
@@ -243,9 +276,14 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
     // Self-intersections after remeshing come from chords across sheets that
     // nearly touch; the topology is still right, so they warn, not fail.
     let only_intersections = remeshed.is_some()
-        && report.checks.iter().all(|c| c.failures == 0 || c.name == "no self-intersections");
+        && report
+            .checks
+            .iter()
+            .all(|c| c.failures == 0 || c.name == "no self-intersections");
     if !report.passed() && only_intersections {
-        let n = report.check("no self-intersections").map_or(0, |c| c.failures);
+        let n = report
+            .check("no self-intersections")
+            .map_or(0, |c| c.failures);
         ui.warn(format!(
             "{n} pairs of remeshed triangles intersect (two sheets closer than the chords' deviation); \
              a smaller --target-edge, or --no-remesh for the exact extraction, avoids them"

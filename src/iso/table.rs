@@ -638,10 +638,12 @@ mod dbg {
             let amb = ambiguous_edges(mask);
             for connect in (0..64u8).filter(|&c| c & !amb == 0 && realizable(mask, c)) {
                 let e = t.entry(mask, connect);
-                let tris: Vec<[u32; 3]> = e.all_tris().iter().map(|x| x.map(|f| f as u32)).collect();
+                let tris: Vec<[u32; 3]> =
+                    e.all_tris().iter().map(|x| x.map(|f| f as u32)).collect();
                 let hits = crate::mesh::intersect::self_intersections(&pos, &tris);
                 if !hits.is_empty() {
-                    let lens: Vec<usize> = (0..e.cycles as usize).map(|i| e.cycle(i).len()).collect();
+                    let lens: Vec<usize> =
+                        (0..e.cycles as usize).map(|i| e.cycle(i).len()).collect();
                     *bad.entry(lens.clone()).or_insert(0) += 1;
                 }
             }

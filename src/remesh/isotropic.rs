@@ -33,7 +33,11 @@ use crate::mesh::{InterfaceMesh, JunctionCurve};
 pub fn triangle_quality(a: DVec3, b: DVec3, c: DVec3) -> f64 {
     let area2 = (b - a).cross(c - a).length();
     let sum = (b - a).length_squared() + (c - b).length_squared() + (a - c).length_squared();
-    if sum == 0.0 { 0.0 } else { 2.0 * 3f64.sqrt() * area2 / sum }
+    if sum == 0.0 {
+        0.0
+    } else {
+        2.0 * 3f64.sqrt() * area2 / sum
+    }
 }
 
 /// Lowest quality a collapse, flip or move may create (unless the triangles
@@ -56,6 +60,16 @@ struct Fit<'a> {
 impl Fit<'_> {
     #[inline]
     fn ok(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
+        // A triangle much smaller than eps between vertices on (or near) the
+        // reference cannot stray from it; the local normal checks of the
+        // operations already keep it from folding over.
+        let small = (0.5 * self.eps).powi(2);
+        if (b - a).length_squared() <= small
+            && (c - b).length_squared() <= small
+            && (a - c).length_squared() <= small
+        {
+            return true;
+        }
         self.reference.fits(a, b, c, self.eps)
     }
 }
@@ -80,7 +94,13 @@ pub(crate) struct Remesher {
 
 impl Remesher {
     /// Sets up patch meshes at the smoothed positions `smoothed`.
-    pub(crate) fn new(mesh: &InterfaceMesh, net: &Network, smoothed: &[DVec3], target: f64, eps: f64) -> Result<Self> {
+    pub(crate) fn new(
+        mesh: &InterfaceMesh,
+        net: &Network,
+        smoothed: &[DVec3],
+        target: f64,
+        eps: f64,
+    ) -> Result<Self> {
         let groups = mesh.patch_triangles();
         let patches: Vec<PatchState> = groups
             .par_iter()
@@ -90,7 +110,15 @@ impl Remesher {
         let curve_ref = net
             .curves
             .par_iter()
-            .map(|c| CurveRef::new(&c.vertices.iter().map(|&v| smoothed[v as usize]).collect::<Vec<_>>(), c.closed))
+            .map(|c| {
+                CurveRef::new(
+                    &c.vertices
+                        .iter()
+                        .map(|&v| smoothed[v as usize])
+                        .collect::<Vec<_>>(),
+                    c.closed,
+                )
+            })
             .collect();
         let mut r = Remesher {
             pos: smoothed.to_vec(),
@@ -114,7 +142,10 @@ impl Remesher {
         for (p, st) in self.patches.iter().enumerate() {
             for v in st.mesh.vertices() {
                 if st.mesh.locked[v as usize] {
-                    self.copies.entry(st.mesh.tag[v as usize]).or_default().push((p as u32, v));
+                    self.copies
+                        .entry(st.mesh.tag[v as usize])
+                        .or_default()
+                        .push((p as u32, v));
                 }
             }
         }
@@ -127,7 +158,9 @@ impl Remesher {
                 self.remesh_curve(c);
             }
             let (target, eps) = (self.target, self.eps);
-            self.patches.par_iter_mut().for_each(|st| remesh_patch(st, target, eps));
+            self.patches
+                .par_iter_mut()
+                .for_each(|st| remesh_patch(st, target, eps));
             self.rebuild_copies();
         }
     }
@@ -137,7 +170,10 @@ impl Remesher {
         let mut out = Vec::new();
         for &(p, lu) in self.copies.get(&u).map(|c| c.as_slice()).unwrap_or(&[]) {
             let m = &self.patches[p as usize].mesh;
-            if let Some(h) = m.outgoing(lu).find(|&g| m.tag[m.to(g) as usize] == v && m.is_boundary_edge(g)) {
+            if let Some(h) = m
+                .outgoing(lu)
+                .find(|&g| m.tag[m.to(g) as usize] == v && m.is_boundary_edge(g))
+            {
                 out.push((p, h));
             }
         }
@@ -199,7 +235,15 @@ impl Remesher {
         let copies = self.copies.get(&v).cloned().unwrap_or_default();
         let ok = copies.iter().all(|&(pi, lv)| {
             let st = &self.patches[pi as usize];
-            move_ok(&st.mesh, lv, p, Fit { reference: &st.reference, eps: self.eps })
+            move_ok(
+                &st.mesh,
+                lv,
+                p,
+                Fit {
+                    reference: &st.reference,
+                    eps: self.eps,
+                },
+            )
         });
         if ok {
             self.pos[v as usize] = p;
@@ -212,7 +256,11 @@ impl Remesher {
 
     fn curve_edges(&self, c: usize) -> usize {
         let n = self.curves[c].len();
-        if self.closed[c] { if n > 2 { n } else { 0 } } else { n.saturating_sub(1) }
+        if self.closed[c] {
+            if n > 2 { n } else { 0 }
+        } else {
+            n.saturating_sub(1)
+        }
     }
 
     fn curve_edge_at(&self, c: usize, i: usize) -> (u32, u32) {
@@ -234,7 +282,11 @@ impl Remesher {
             return false;
         };
         // the other curve neighbour of `remove` must stay within 4/3 L of `keep`
-        let other = if remove == u { self.curves[c][(i + n - 1) % n] } else { self.curves[c][(i + 2) % n] };
+        let other = if remove == u {
+            self.curves[c][(i + n - 1) % n]
+        } else {
+            self.curves[c][(i + 2) % n]
+        };
         if (self.pos[other as usize] - self.pos[keep as usize]).length() > 4.0 / 3.0 * self.target {
             return false;
         }
@@ -246,8 +298,12 @@ impl Remesher {
         let target_pos = self.pos[keep as usize];
         let ok = sites.iter().all(|&(p, h)| {
             let st = &self.patches[p as usize];
-            let fit = Fit { reference: &st.reference, eps: self.eps };
-            st.mesh.is_collapse_ok(h) && collapse_geometry_ok(&st.mesh, h, target_pos, f64::INFINITY, fit)
+            let fit = Fit {
+                reference: &st.reference,
+                eps: self.eps,
+            };
+            st.mesh.is_collapse_ok(h)
+                && collapse_geometry_ok(&st.mesh, h, target_pos, f64::INFINITY, fit)
         });
         if !ok {
             return false;
@@ -278,7 +334,11 @@ impl Remesher {
                 }
                 let (a, b) = (self.curves[c][(i + n - 1) % n], self.curves[c][(i + 1) % n]);
                 let mid = (self.pos[a as usize] + self.pos[b as usize]) * 0.5;
-                Some((v, self.curve_ref[c].project(self.pos[v as usize] + (mid - self.pos[v as usize]) * 0.5)))
+                Some((
+                    v,
+                    self.curve_ref[c]
+                        .project(self.pos[v as usize] + (mid - self.pos[v as usize]) * 0.5),
+                ))
             })
             .collect();
         for (v, p) in targets {
@@ -319,12 +379,22 @@ impl Remesher {
                 origin.push((p as u32, f));
             }
         }
-        Snapshot { positions, triangles, origin, new_id }
+        Snapshot {
+            positions,
+            triangles,
+            origin,
+            new_id,
+        }
     }
 
     /// The remeshed interface mesh (patches and labels of `like`).
     pub(crate) fn into_mesh(self, like: &InterfaceMesh) -> InterfaceMesh {
-        let Snapshot { positions, triangles, origin, new_id } = self.snapshot();
+        let Snapshot {
+            positions,
+            triangles,
+            origin,
+            new_id,
+        } = self.snapshot();
         let triangle_patch = origin.iter().map(|o| o.0).collect();
         let junctions = self
             .curves
@@ -356,7 +426,13 @@ struct Snapshot {
     new_id: Vec<u32>,
 }
 
-fn build_patch(mesh: &InterfaceMesh, net: &Network, smoothed: &[DVec3], p: usize, tris: &[u32]) -> Result<PatchState> {
+fn build_patch(
+    mesh: &InterfaceMesh,
+    net: &Network,
+    smoothed: &[DVec3],
+    p: usize,
+    tris: &[u32],
+) -> Result<PatchState> {
     let mut local_of: HashMap<u32, u32> = HashMap::with_capacity(tris.len());
     let mut pos = Vec::new();
     let mut tag = Vec::new();
@@ -384,7 +460,10 @@ fn build_patch(mesh: &InterfaceMesh, net: &Network, smoothed: &[DVec3], p: usize
     for v in 0..m.vertex_slots() {
         m.locked[v] = net.on_junction(m.tag[v]);
     }
-    Ok(PatchState { mesh: m, reference: SurfaceRef::new(ref_tris) })
+    Ok(PatchState {
+        mesh: m,
+        reference: SurfaceRef::new(ref_tris),
+    })
 }
 
 /// Whether moving vertex `v` to `p` keeps every incident triangle facing the
@@ -400,7 +479,10 @@ fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3, fit: Fit) -> bool {
         if old_n.dot(new_n) <= 0.0 || is_degenerate(p, a, b) {
             return false;
         }
-        let (q_old, q_new) = (triangle_quality(m.pos[v as usize], a, b), triangle_quality(p, a, b));
+        let (q_old, q_new) = (
+            triangle_quality(m.pos[v as usize], a, b),
+            triangle_quality(p, a, b),
+        );
         if q_new < MIN_QUALITY && q_new < q_old {
             return false;
         }
@@ -423,7 +505,12 @@ fn collapse_geometry_ok(m: &HalfedgeMesh, h: u32, p: DVec3, max_edge: f64, fit: 
         }
         // an edge between two junction vertices may only appear on the boundary:
         // inside a patch it could duplicate an edge of a neighbouring patch
-        if w != v1 && m.locked[v1 as usize] && m.locked[w as usize] && !m.is_boundary_edge(g) && !m.outgoing(v1).any(|k| m.to(k) == w) {
+        if w != v1
+            && m.locked[v1 as usize]
+            && m.locked[w as usize]
+            && !m.is_boundary_edge(g)
+            && !m.outgoing(v1).any(|k| m.to(k) == w)
+        {
             return false;
         }
         if m.is_boundary_halfedge(g) {
@@ -442,7 +529,11 @@ fn collapse_geometry_ok(m: &HalfedgeMesh, h: u32, p: DVec3, max_edge: f64, fit: 
         // a triangle on three junction vertices may be a patch's last piece
         // between two curves; making one could flatten a small region into
         // coincident triangles of two patches
-        if !m.locked[v0 as usize] && m.locked[v1 as usize] && m.locked[w as usize] && m.locked[b as usize] {
+        if !m.locked[v0 as usize]
+            && m.locked[v1 as usize]
+            && m.locked[w as usize]
+            && m.locked[b as usize]
+        {
             return false;
         }
         let (pa, pb, p0) = (m.pos[w as usize], m.pos[b as usize], m.pos[v0 as usize]);
@@ -464,7 +555,10 @@ fn collapse_geometry_ok(m: &HalfedgeMesh, h: u32, p: DVec3, max_edge: f64, fit: 
 
 /// One B&K iteration on the interior of a patch (curves frozen).
 fn remesh_patch(st: &mut PatchState, target: f64, eps: f64) {
-    let fit = Fit { reference: &st.reference, eps };
+    let fit = Fit {
+        reference: &st.reference,
+        eps,
+    };
     split_long_edges(&mut st.mesh, target);
     collapse_short_edges(&mut st.mesh, target, fit);
     st.mesh.collect_garbage();
@@ -503,10 +597,17 @@ fn collapse_short_edges(m: &mut HalfedgeMesh, target: f64, fit: Fit) {
         }
         // both ends free: try merging them at the midpoint, on the reference
         let (v0, v1) = (m.from(e), m.to(e));
-        if m.locked[v0 as usize] || m.locked[v1 as usize] || m.is_boundary_vertex(v0) || m.is_boundary_vertex(v1) || !m.is_collapse_ok(e) {
+        if m.locked[v0 as usize]
+            || m.locked[v1 as usize]
+            || m.is_boundary_vertex(v0)
+            || m.is_boundary_vertex(v1)
+            || !m.is_collapse_ok(e)
+        {
             continue;
         }
-        let p = fit.reference.project((m.pos[v0 as usize] + m.pos[v1 as usize]) * 0.5);
+        let p = fit
+            .reference
+            .project((m.pos[v0 as usize] + m.pos[v1 as usize]) * 0.5);
         if collapse_geometry_ok(m, e, p, hi, fit) && collapse_geometry_ok(m, e ^ 1, p, hi, fit) {
             m.pos[v1 as usize] = p;
             m.collapse(e);
