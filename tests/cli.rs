@@ -653,10 +653,20 @@ fn manifest_pairs(m: &Value) -> BTreeSet<(i64, i64)> {
         .collect()
 }
 
+/// The exact extraction (`--no-remesh`) of the shipped phantom.
 fn extract_heart(out: &Path, extra: &[&str]) {
     let data = data("heart_phantom_48.nii.gz");
     let cfg = heart_config();
-    let mut args = vec!["extract", p(&data), "-c", p(&cfg), "-o", p(out), "-q"];
+    let mut args = vec![
+        "extract",
+        p(&data),
+        "-c",
+        p(&cfg),
+        "-o",
+        p(out),
+        "-q",
+        "--no-remesh",
+    ];
     args.extend_from_slice(extra);
     ok(septa(&args));
 }
@@ -1031,7 +1041,7 @@ fn existing_outdir_needs_force_and_never_holds_the_input() {
     std::fs::write(out.join("mine.txt"), "keep me").unwrap();
     let data_path = data("heart_phantom_48.nii.gz");
     let run = |force: bool| {
-        let mut args = vec!["extract", p(&data_path), "-o", p(&out), "-q"];
+        let mut args = vec!["extract", p(&data_path), "-o", p(&out), "-q", "--no-remesh"];
         if force {
             args.push("--force");
         }
@@ -1182,4 +1192,112 @@ fn check_finds_a_hole() {
     let o = septa(["check", p(&out.join("manifest.json"))]);
     assert_eq!(o.status.code(), Some(2));
     fails(o, &["manifest.json"]);
+}
+
+/// The default run smooths and remeshes: the manifest carries the parameters
+/// and the quality report, the patches still share their junction vertices
+/// (same `vid` on both sides), and the files read back as the manifest says.
+#[test]
+fn extract_remeshes_by_default() {
+    use septa::io::mesh_ply::read_ply;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let data = data("heart_phantom_48.nii.gz");
+    let cfg = heart_config();
+    let text = ok(septa([
+        "extract",
+        p(&data),
+        "-c",
+        p(&cfg),
+        "-o",
+        p(&out),
+        "--target-edge",
+        "3",
+    ]));
+    assert!(text.contains("remesh"), "{text}");
+    assert!(text.contains("within [0.8 L, 1.33 L]"), "{text}");
+    let m = manifest(&out);
+    assert_eq!(m["parameters"]["remesh"]["target_edge"], 3.0);
+    let q = &m["quality"];
+    assert_eq!(q["edges"]["target_mm"], 3.0);
+    assert!(q["edges"]["within_range"].as_f64().unwrap() > 0.85, "{q}");
+    assert!(q["angles"]["min_ge_20"].as_f64().unwrap() > 0.97, "{q}");
+    assert!(
+        q["distance"]["hausdorff_voxels"].as_f64().unwrap() <= 1.0,
+        "{q}"
+    );
+    let extraction = m["extraction"]["triangles"].as_u64().unwrap();
+    let triangles = m["triangles"].as_u64().unwrap();
+    assert!(triangles * 5 < extraction, "{triangles} vs {extraction}");
+    // every check but self-intersections passes
+    for c in m["validation"]["checks"].as_array().unwrap() {
+        if c["name"] != "no self-intersections" {
+            assert_eq!(c["failures"], 0, "{c}");
+        }
+    }
+    let whole = read_ply(&out.join("interfaces.ply")).unwrap().mesh;
+    assert_eq!(whole.triangle_count() as u64, triangles);
+    assert_eq!(manifest_pairs(&m).len(), whole.patches.len());
+
+    // config keys do the same as the flags; the flag wins over the config
+    let cfg2 = dir.path().join("heart.toml");
+    let base = std::fs::read_to_string(heart_config()).unwrap();
+    assert!(base.contains("\ntarget_edge = 2.0\n"));
+    std::fs::write(
+        &cfg2,
+        base.replace(
+            "\ntarget_edge = 2.0\n",
+            "\ntarget_edge = 4.0\niterations = 3\n",
+        ),
+    )
+    .unwrap();
+    let out2 = dir.path().join("out2");
+    ok(septa([
+        "extract",
+        p(&data),
+        "-c",
+        p(&cfg2),
+        "-o",
+        p(&out2),
+        "-q",
+    ]));
+    let m2 = manifest(&out2);
+    assert_eq!(m2["parameters"]["remesh"]["target_edge"], 4.0);
+    assert_eq!(m2["parameters"]["remesh"]["iterations"], 3);
+    let out3 = dir.path().join("out3");
+    ok(septa([
+        "extract",
+        p(&data),
+        "-c",
+        p(&cfg2),
+        "-o",
+        p(&out3),
+        "-q",
+        "--no-remesh",
+    ]));
+    assert!(manifest(&out3)["quality"].is_null());
+    assert_eq!(manifest(&out3)["triangles"], m2["extraction"]["triangles"]);
+
+    // bad parameters are clear errors
+    fails(
+        septa([
+            "extract",
+            p(&data),
+            "-o",
+            p(&dir.path().join("o4")),
+            "--target-edge",
+            "0",
+        ]),
+        &["target edge", "positive"],
+    );
+    fails(
+        septa([
+            "extract",
+            p(&data),
+            "-o",
+            p(&dir.path().join("o5")),
+            "--max-displacement=-1",
+        ]),
+        &["displacement"],
+    );
 }

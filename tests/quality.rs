@@ -2,7 +2,6 @@
 //! and histogram rules, distances against shifted copies, volumes, degenerate
 //! input, and speed.
 
-
 use glam::DVec3;
 use septa::mesh::quality::{
     NearestBvh, QualityOptions, closest_point_on_triangle, percentile, quality,
@@ -200,7 +199,10 @@ fn octahedron_exact() {
     assert_eq!(d.samples, 6 + 8 + 12);
     assert!(d.hausdorff_mm < 1e-12, "{}", d.hausdorff_mm);
     assert!(r.labels[1].change.unwrap().abs() < 1e-12);
-    assert_eq!(r.labels[0].change, None, "the outside has no relative change");
+    assert_eq!(
+        r.labels[0].change, None,
+        "the outside has no relative change"
+    );
     assert!(r.edges.target_is_mean);
     assert!(close(r.edges.target_mm, 2f64.sqrt(), 1e-12));
 }
@@ -273,7 +275,9 @@ fn shifted_copy_hausdorff_is_the_shift() {
     // Voxels: divided by the largest spacing.
     let mut m = shifted(&g, DVec3::new(0.0, 0.0, 1.0));
     m.geometry = Geometry::new([0.5, 2.0, 1.0], [0.0; 3], Geometry::IDENTITY_DIRECTION).unwrap();
-    let d = quality(&m, Some(&g), &QualityOptions::default()).distance.unwrap();
+    let d = quality(&m, Some(&g), &QualityOptions::default())
+        .distance
+        .unwrap();
     assert!(close(d.hausdorff_voxels, 0.5, 1e-12));
     assert_eq!(d.voxel_mm, 2.0);
 }
@@ -303,20 +307,30 @@ fn distance_matches_brute_force() {
                 x.distance_squared(closest_point_on_triangle(x, a, b, c))
             })
             .fold(f64::INFINITY, f64::min);
-        let hint = if k % 2 == 0 { u32::MAX } else { (k * 7 % r.triangles.len()) as u32 };
+        let hint = if k % 2 == 0 {
+            u32::MAX
+        } else {
+            (k * 7 % r.triangles.len()) as u32
+        };
         let n = bvh.nearest(x, hint).unwrap();
         assert_eq!(n.distance_squared, brute, "sample {k}");
         worst = worst.max(brute.sqrt());
     }
     assert!(worst > 0.0);
     // The report's Hausdorff over the same kind of samples.
-    let d = quality(&q, Some(&r), &QualityOptions::default()).distance.unwrap();
+    let d = quality(&q, Some(&r), &QualityOptions::default())
+        .distance
+        .unwrap();
     assert!(d.hausdorff_mm > 0.25 && d.hausdorff_mm < 1.0, "{d:?}");
 }
 
 #[test]
 fn closest_point_regions_and_degenerate_triangles() {
-    let (a, b, c) = (DVec3::ZERO, DVec3::new(2.0, 0.0, 0.0), DVec3::new(0.0, 2.0, 0.0));
+    let (a, b, c) = (
+        DVec3::ZERO,
+        DVec3::new(2.0, 0.0, 0.0),
+        DVec3::new(0.0, 2.0, 0.0),
+    );
     let cp = |p: DVec3| closest_point_on_triangle(p, a, b, c);
     assert_eq!(cp(DVec3::new(0.5, 0.5, 1.0)), DVec3::new(0.5, 0.5, 0.0));
     assert_eq!(cp(DVec3::new(3.0, -1.0, 0.0)), b);
@@ -360,7 +374,9 @@ fn first_percentile_of_min_angles() {
         .map(|t| {
             let [a, b, c] = t.map(|v| g.positions[v as usize]);
             let ang = |u: DVec3, v: DVec3| u.angle_between(v).to_degrees();
-            ang(b - a, c - a).min(ang(a - b, c - b)).min(ang(a - c, b - c))
+            ang(b - a, c - a)
+                .min(ang(a - b, c - b))
+                .min(ang(a - c, b - c))
         })
         .collect();
     mins.sort_by(f64::total_cmp);
@@ -446,7 +462,9 @@ fn junction_vertices_counted_per_patch() {
     let r = quality(&mesh, None, &QualityOptions::default());
     assert_eq!((r.vertices, r.triangles, r.patches), (12, 22, 3));
     let vols: Vec<f64> = r.labels.iter().map(|l| l.volume_mm3).collect();
-    assert!(close(vols[0], -2.0, 1e-12) && close(vols[1], 1.0, 1e-12) && close(vols[2], 1.0, 1e-12));
+    assert!(
+        close(vols[0], -2.0, 1e-12) && close(vols[1], 1.0, 1e-12) && close(vols[2], 1.0, 1e-12)
+    );
     assert_eq!(r.labels[0].name, "label0");
     // The 4 corners of the shared square are junction vertices (the square's
     // edges are used by 3 triangles; its diagonal is inside patch {1,2}).
@@ -476,7 +494,13 @@ fn empty_degenerate_and_huge_inputs_do_not_panic() {
         vec![DVec3::ZERO, DVec3::X, 2.0 * DVec3::X, DVec3::ZERO],
         vec![[0, 1, 2], [0, 1, 3], [0, 0, 0]],
     );
-    let r = quality(&m, Some(&m), &QualityOptions { target_edge_mm: f64::NAN });
+    let r = quality(
+        &m,
+        Some(&m),
+        &QualityOptions {
+            target_edge_mm: f64::NAN,
+        },
+    );
     assert_eq!(r.angles.degenerate, 3);
     assert_eq!(r.angles.min_deg, 0.0);
     assert_eq!(r.angles.max_deg, 180.0);
@@ -511,7 +535,15 @@ fn deterministic_across_thread_counts() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| quality(&q, Some(&r), &QualityOptions { target_edge_mm: 0.8 }))
+            .install(|| {
+                quality(
+                    &q,
+                    Some(&r),
+                    &QualityOptions {
+                        target_edge_mm: 0.8,
+                    },
+                )
+            })
     };
     let (a, b) = (run(1), run(2));
     assert_eq!(a, b);
@@ -524,10 +556,26 @@ fn deterministic_across_thread_counts() {
 #[test]
 fn sphere_against_finer_sphere() {
     let m = sphere(50, 100, 50.0, 0.0);
-    let r = quality(&m, Some(&m), &QualityOptions { target_edge_mm: 3.0 });
+    let r = quality(
+        &m,
+        Some(&m),
+        &QualityOptions {
+            target_edge_mm: 3.0,
+        },
+    );
     assert!(r.distance.as_ref().unwrap().hausdorff_mm < 1e-9);
     let reference = sphere(100, 100, 50.05, 0.001);
-    let r = quality(&m, Some(&reference), &QualityOptions { target_edge_mm: 3.0 });
+    let r = quality(
+        &m,
+        Some(&reference),
+        &QualityOptions {
+            target_edge_mm: 3.0,
+        },
+    );
     let d = r.distance.unwrap();
-    assert!(d.hausdorff_mm > 0.04 && d.hausdorff_mm < 1.0, "{}", d.hausdorff_mm);
+    assert!(
+        d.hausdorff_mm > 0.04 && d.hausdorff_mm < 1.0,
+        "{}",
+        d.hausdorff_mm
+    );
 }

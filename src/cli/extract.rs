@@ -10,10 +10,12 @@ use super::ui::{Ui, count, secs, table};
 use super::{VolumeArgs, load, show};
 use septa::Result;
 use septa::extract::{Decompose, ExtractOptions, Surface, extract, label_infos};
+use septa::mesh::quality::{QualityOptions, quality};
 use septa::mesh::stats::patch_stats;
 use septa::mesh::validate::{Options, validate};
 use septa::output::{Formats, check_outdir, patch_path, write_outdir};
 use septa::preprocess::preprocess;
+use septa::remesh::{RemeshParams, remesh};
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum DecomposeArg {
@@ -51,16 +53,62 @@ pub struct ExtractArgs {
     /// How N-cycles are cut into triangles.
     #[arg(long, value_enum, default_value = "l", ignore_case = true)]
     pub decompose: DecomposeArg,
-    /// Which surface to extract.
+    /// Which surface to extract (`faces` is written as is, never remeshed).
     #[arg(long, value_enum, default_value = "vesta")]
     pub surface: SurfaceArg,
     /// Extra formats besides PLY: obj (all patches, one group each), vtp (ParaView),
     /// stl (one closed outward surface per label, for printing). Repeatable or comma-separated.
     #[arg(long = "format", value_enum, value_delimiter = ',')]
     pub formats: Vec<FormatArg>,
-    /// Also check the output for self-intersections (slower).
+    /// Also check the output for self-intersections (slower; always done after remeshing).
     #[arg(long)]
     pub intersections: bool,
+    /// Write the extraction as it is: no smoothing, no remeshing (config: `[remesh] enabled = false`).
+    #[arg(long)]
+    pub no_remesh: bool,
+    /// Target edge length of the remeshed patches, in mm (default: twice the mean voxel spacing).
+    #[arg(long, value_name = "MM")]
+    pub target_edge: Option<f64>,
+    /// Taubin λ/μ smoothing passes that remove the voxel staircase before remeshing (default 10).
+    #[arg(long, value_name = "N")]
+    pub smooth_iterations: Option<u32>,
+    /// How far smoothing may move a vertex, in voxels along each axis (default 0.5); keeps thin walls.
+    #[arg(long, value_name = "VOXELS")]
+    pub max_displacement: Option<f64>,
+    /// Split/collapse/flip/relax iterations of the remesher (default 8).
+    #[arg(long, value_name = "N")]
+    pub remesh_iterations: Option<u32>,
+}
+
+/// Remeshing parameters from the command line, else the config, else the defaults.
+fn remesh_params(
+    args: &ExtractArgs,
+    cfg: &septa::config::RemeshOptions,
+    geometry: &septa::volume::Geometry,
+) -> Option<RemeshParams> {
+    // the primal faces are the exact voxel boundary, asked for as such
+    if args.no_remesh || cfg.enabled == Some(false) || matches!(args.surface, SurfaceArg::Faces) {
+        return None;
+    }
+    let d = RemeshParams::default();
+    Some(RemeshParams {
+        target_edge: args
+            .target_edge
+            .or(cfg.target_edge)
+            .unwrap_or_else(|| RemeshParams::default_target(geometry)),
+        smooth_iterations: args
+            .smooth_iterations
+            .or(cfg.smooth_iterations)
+            .unwrap_or(d.smooth_iterations),
+        max_displacement: args
+            .max_displacement
+            .or(cfg.max_displacement)
+            .unwrap_or(d.max_displacement),
+        iterations: args
+            .remesh_iterations
+            .or(cfg.iterations)
+            .unwrap_or(d.iterations),
+    })
 }
 
 pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
@@ -72,6 +120,10 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
     timings.push(("read", stage.done()));
     let v = &loaded.volume;
     let r = &loaded.resolved;
+    let params = remesh_params(args, &loaded.config.remesh, v.geometry());
+    if let Some(p) = &params {
+        p.validate()?;
+    }
 
     let stage = ui.stage("finding and fattening critical elements");
     let pre = preprocess(v, r);
@@ -102,13 +154,40 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
         &opts,
     )?;
     timings.push(("extract", stage.done()));
+    let extraction_size = (mesh.triangle_count(), mesh.vertex_count());
+
+    let (mesh, remeshed) = match params {
+        Some(params) => {
+            let stage = ui.stage(&format!(
+                "smoothing and remeshing to {:.2} mm edges",
+                params.target_edge
+            ));
+            let out = remesh(&mesh, &params)?;
+            let q = quality(
+                &out.mesh,
+                Some(&mesh),
+                &QualityOptions {
+                    target_edge_mm: params.target_edge,
+                },
+            );
+            timings.push(("remesh", stage.done()));
+            (out.mesh, Some((params, q)))
+        }
+        None => (mesh, None),
+    };
 
     let stage = ui.stage("validating");
     let report = validate(
         &mesh,
         &Options {
-            intersections: args.intersections,
-            fidelity: Some((&pre.refined, 0.5)),
+            intersections: args.intersections || remeshed.is_some(),
+            // remeshed vertices leave the voxel grid by design; their distance
+            // to the extraction is in the quality report instead
+            fidelity: if remeshed.is_some() {
+                None
+            } else {
+                Some((&pre.refined, 0.5))
+            },
         },
     );
     timings.push(("validate", stage.done()));
@@ -137,6 +216,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
             "surface": format!("{:?}", opts.surface).to_lowercase(),
             "decompose": format!("{:?}", opts.decompose),
             "subdivision": pre.refined.subdivision(),
+            "remesh": remeshed.as_ref().map(|r| r.0),
             "outside": v.value(r.outside),
             "priority": loaded.config.priority.iter().map(|p| p.to_string()).collect::<Vec<_>>(),
             "separate": loaded.config.separate.iter().map(|s| serde_json::json!({
@@ -164,6 +244,8 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
             "labels": c.labels.iter().map(|&l| mesh.label_value(l)).collect::<Vec<_>>(),
             "vertices": c.vertices.len(), "closed": c.closed,
         })).collect::<Vec<_>>(),
+        "extraction": {"triangles": extraction_size.0, "vertices": extraction_size.1},
+        "quality": remeshed.as_ref().map(|r| &r.1),
         "validation": {"passed": report.passed(), "checks": report.checks},
         "timings_s": timings.iter().map(|(k, d)| ((*k).to_string(), serde_json::json!(d.as_secs_f64()))).collect::<serde_json::Map<_, _>>(),
     });
@@ -185,7 +267,29 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
         &stats,
         &timings,
         files.len(),
+        extraction_size,
     );
+    if let Some((_, q)) = &remeshed {
+        ui.say("remeshing quality (distance and volume change against the unsmoothed extraction):");
+        ui.say(q.summary().trim_end());
+    }
+    // Self-intersections after remeshing come from chords across sheets that
+    // nearly touch; the topology is still right, so they warn, not fail.
+    let only_intersections = remeshed.is_some()
+        && report
+            .checks
+            .iter()
+            .all(|c| c.failures == 0 || c.name == "no self-intersections");
+    if !report.passed() && only_intersections {
+        let n = report
+            .check("no self-intersections")
+            .map_or(0, |c| c.failures);
+        ui.warn(format!(
+            "{n} pairs of remeshed triangles intersect (two sheets closer than the chords' deviation); \
+             a smaller --target-edge, or --no-remesh for the exact extraction, avoids them"
+        ));
+        return Ok(ExitCode::SUCCESS);
+    }
     if report.passed() {
         Ok(ExitCode::SUCCESS)
     } else {
@@ -207,6 +311,7 @@ fn summarize(
     stats: &[septa::mesh::stats::PatchStats],
     timings: &[(&str, Duration)],
     files: usize,
+    extraction_size: (usize, usize),
 ) {
     let v = &loaded.volume;
     let d = v.dims();
@@ -236,9 +341,14 @@ fn summarize(
             "extract" => format!(
                 "{} patches, {} triangles, {} vertices, {} junction curves",
                 mesh.patches.len(),
-                count(mesh.triangle_count() as u64),
-                count(mesh.vertex_count() as u64),
+                count(extraction_size.0 as u64),
+                count(extraction_size.1 as u64),
                 mesh.junctions.len()
+            ),
+            "remesh" => format!(
+                "{} triangles, {} vertices",
+                count(mesh.triangle_count() as u64),
+                count(mesh.vertex_count() as u64)
             ),
             "validate" => {
                 if report.passed() {

@@ -100,12 +100,17 @@ impl Bvh {
         }
         let box2 = |n: &Node| (n.lo - p).max(p - n.hi).max(DVec3::ZERO).length_squared();
         let mut best: Option<(u32, f64)> = None;
-        let mut stack = vec![(0usize, box2(&self.nodes[0]))];
-        while let Some((ni, d)) = stack.pop() {
+        // median splits keep the depth near log2(n / LEAF); 128 levels is ample
+        let mut stack = [(0u32, 0f64); 128];
+        stack[0] = (0, box2(&self.nodes[0]));
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let (ni, d) = stack[top];
             if best.is_some_and(|b| d >= b.1) {
                 continue;
             }
-            let n = self.nodes[ni];
+            let n = self.nodes[ni as usize];
             if n.count > 0 {
                 for &i in &self.items[n.start as usize..(n.start + n.count) as usize] {
                     let di = dist2(i);
@@ -114,19 +119,50 @@ impl Bvh {
                     }
                 }
             } else {
-                let (l, r) = (n.start as usize, n.start as usize + 1);
-                let (dl, dr) = (box2(&self.nodes[l]), box2(&self.nodes[r]));
+                let (l, r) = (n.start, n.start + 1);
+                let (dl, dr) = (box2(&self.nodes[l as usize]), box2(&self.nodes[r as usize]));
                 // visit the nearer child first (pushed last)
-                if dl < dr {
-                    stack.push((r, dr));
-                    stack.push((l, dl));
+                let (first, second) = if dl < dr {
+                    ((l, dl), (r, dr))
                 } else {
-                    stack.push((l, dl));
-                    stack.push((r, dr));
-                }
+                    ((r, dr), (l, dl))
+                };
+                stack[top] = second;
+                stack[top + 1] = first;
+                top += 2;
             }
         }
         best
+    }
+
+    /// Whether `f` holds for some item whose box overlaps `[lo, hi]` (stops at
+    /// the first).
+    pub fn any(&self, lo: DVec3, hi: DVec3, mut f: impl FnMut(u32) -> bool) -> bool {
+        if self.items.is_empty() {
+            return false;
+        }
+        let mut stack = [0u32; 128];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let n = self.nodes[stack[top] as usize];
+            if n.lo.cmpgt(hi).any() || n.hi.cmplt(lo).any() {
+                continue;
+            }
+            if n.count > 0 {
+                if self.items[n.start as usize..(n.start + n.count) as usize]
+                    .iter()
+                    .any(|&i| f(i))
+                {
+                    return true;
+                }
+            } else {
+                stack[top] = n.start;
+                stack[top + 1] = n.start + 1;
+                top += 2;
+            }
+        }
+        false
     }
 
     /// Calls `f` with every item whose box overlaps `[lo, hi]`.
@@ -154,6 +190,16 @@ impl Bvh {
 
 /// Pairs of triangles that intersect other than along what they share.
 pub fn self_intersections(positions: &[DVec3], triangles: &[[u32; 3]]) -> Vec<(u32, u32)> {
+    intersections_of(positions, triangles, None)
+}
+
+/// Pairs (i, j), i < j, of intersecting triangles with at least one of them in
+/// `subset` (all triangles when `None`).
+pub fn intersections_of(
+    positions: &[DVec3],
+    triangles: &[[u32; 3]],
+    subset: Option<&[u32]>,
+) -> Vec<(u32, u32)> {
     let boxes: Vec<(DVec3, DVec3)> = triangles
         .iter()
         .map(|t| {
@@ -166,20 +212,41 @@ pub fn self_intersections(positions: &[DVec3], triangles: &[[u32; 3]]) -> Vec<(u
         })
         .collect();
     let bvh = Bvh::new(&boxes);
-    (0..triangles.len() as u32)
-        .into_par_iter()
-        .flat_map_iter(|i| {
+    let all: Vec<u32>;
+    let (ids, in_subset): (&[u32], Option<Vec<bool>>) = match subset {
+        Some(s) => {
+            let mut mark = vec![false; triangles.len()];
+            for &i in s {
+                mark[i as usize] = true;
+            }
+            (s, Some(mark))
+        }
+        None => {
+            all = (0..triangles.len() as u32).collect();
+            (&all, None)
+        }
+    };
+    let mut pairs: Vec<(u32, u32)> = ids
+        .par_iter()
+        .flat_map_iter(|&i| {
             let mut hits = Vec::new();
             bvh.query(boxes[i as usize].0, boxes[i as usize].1, |j| {
-                if j > i
+                // each pair once: by the smaller id, or by the subset member
+                let counted_here = match &in_subset {
+                    None => j > i,
+                    Some(mark) => !mark[j as usize] || j > i,
+                };
+                if counted_here
                     && triangles_intersect(positions, triangles[i as usize], triangles[j as usize])
                 {
-                    hits.push((i, j));
+                    hits.push((i.min(j), i.max(j)));
                 }
             });
             hits
         })
-        .collect()
+        .collect();
+    pairs.sort_unstable();
+    pairs
 }
 
 /// The validator's check.
@@ -258,7 +325,11 @@ pub fn triangles_intersect(p: &[DVec3], s: [u32; 3], t: [u32; 3]) -> bool {
 /// cannot intersect; shared vertices lie on the plane and do not count).
 fn separated_by_plane(s: &[DVec3; 3], t: &[DVec3; 3]) -> bool {
     let n = (s[1] - s[0]).cross(s[2] - s[0]);
-    let scale = n.length() * (t[0] - s[0]).length().max((t[1] - s[0]).length()).max((t[2] - s[0]).length());
+    let scale = n.length()
+        * (t[0] - s[0])
+            .length()
+            .max((t[1] - s[0]).length())
+            .max((t[2] - s[0]).length());
     let eps = 1e-12 * scale;
     let d = t.map(|q| n.dot(q - s[0]));
     let pos = d.iter().filter(|&&x| x > eps).count();
@@ -266,7 +337,8 @@ fn separated_by_plane(s: &[DVec3; 3], t: &[DVec3; 3]) -> bool {
     let zero = 3 - pos - neg;
     // vertices on the plane may be shared ones: separated if the others agree and
     // those on the plane are vertices of s
-    (pos + zero == 3 && pos > 0 || neg + zero == 3 && neg > 0) && (0..3).all(|k| d[k].abs() > eps || s.contains(&t[k]))
+    (pos + zero == 3 && pos > 0 || neg + zero == 3 && neg > 0)
+        && (0..3).all(|k| d[k].abs() > eps || s.contains(&t[k]))
 }
 
 fn disjoint_intersect(s: &[DVec3; 3], t: &[DVec3; 3]) -> bool {

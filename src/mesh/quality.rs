@@ -287,7 +287,11 @@ impl QualityReport {
         }
         let bounded: Vec<&LabelVolumeStats> = self.labels.iter().filter(|l| !l.unbounded).collect();
         if !bounded.is_empty() {
-            let name_w = bounded.iter().map(|l| l.name.chars().count()).max().unwrap_or(0);
+            let name_w = bounded
+                .iter()
+                .map(|l| l.name.chars().count())
+                .max()
+                .unwrap_or(0);
             let with_change = bounded.iter().any(|l| l.change.is_some());
             s.push_str(if with_change {
                 "volume     label, mm³, change against the reference\n"
@@ -584,7 +588,9 @@ fn valence_stats(mesh: &InterfaceMesh, topo: &Topology) -> ValenceStats {
     for &(e, patch) in &topo.edge_patches {
         for v in topo.edges[e as usize] {
             if topo.vertex_boundary[v as usize] {
-                *per_patch.entry(((v as u64) << 32) | patch as u64).or_insert(0) += 1;
+                *per_patch
+                    .entry(((v as u64) << 32) | patch as u64)
+                    .or_insert(0) += 1;
             }
         }
     }
@@ -631,11 +637,10 @@ fn volumes(mesh: &InterfaceMesh) -> Vec<f64> {
     if nl == 0 || p.is_empty() {
         return vec![0.0; nl];
     }
-    let (lo, hi) = p
-        .iter()
-        .fold((DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)), |(l, h), &x| {
-            (l.min(x), h.max(x))
-        });
+    let (lo, hi) = p.iter().fold(
+        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+        |(l, h), &x| (l.min(x), h.max(x)),
+    );
     let o = 0.5 * lo + 0.5 * hi;
     let nv = p.len();
     let np = mesh.patches.len();
@@ -707,12 +712,12 @@ fn label_volumes(mesh: &InterfaceMesh, reference: Option<&InterfaceMesh>) -> Vec
 
 // ───────────────────────────── distances ─────────────────────────────
 
-fn distance_stats(mesh: &InterfaceMesh, edges: &[[u32; 2]], reference: &InterfaceMesh) -> DistanceStats {
-    let voxel_mm = mesh
-        .geometry
-        .spacing()
-        .into_iter()
-        .fold(0.0f64, f64::max);
+fn distance_stats(
+    mesh: &InterfaceMesh,
+    edges: &[[u32; 2]],
+    reference: &InterfaceMesh,
+) -> DistanceStats {
+    let voxel_mm = mesh.geometry.spacing().into_iter().fold(0.0f64, f64::max);
     let voxel_mm = if voxel_mm.is_finite() && voxel_mm > 0.0 {
         voxel_mm
     } else {
@@ -730,14 +735,16 @@ fn distance_stats(mesh: &InterfaceMesh, edges: &[[u32; 2]], reference: &Interfac
     // Per chunk: (max d², where, sum of d, count).
     type Part = (f64, DVec3, f64, usize);
     let combine = |parts: Vec<Part>| -> Part {
-        parts.into_iter().fold((-1.0, DVec3::ZERO, 0.0, 0), |acc, x| {
-            (
-                if x.0 > acc.0 { x.0 } else { acc.0 },
-                if x.0 > acc.0 { x.1 } else { acc.1 },
-                acc.2 + x.2,
-                acc.3 + x.3,
-            )
-        })
+        parts
+            .into_iter()
+            .fold((-1.0, DVec3::ZERO, 0.0, 0), |acc, x| {
+                (
+                    if x.0 > acc.0 { x.0 } else { acc.0 },
+                    if x.0 > acc.0 { x.1 } else { acc.1 },
+                    acc.2 + x.2,
+                    acc.3 + x.3,
+                )
+            })
     };
     // Vertices, remembering the nearest triangle as a hint for the rest.
     let mut hints = vec![u32::MAX; nv];
@@ -1187,8 +1194,16 @@ fn build(ctx: &BuildCtx, items: &mut [u32], offset: usize, node_base: u32, nodes
     }
     let (a, b) = (left[0], right[0]);
     this[0] = Node {
-        lo: [a.lo[0].min(b.lo[0]), a.lo[1].min(b.lo[1]), a.lo[2].min(b.lo[2])],
-        hi: [a.hi[0].max(b.hi[0]), a.hi[1].max(b.hi[1]), a.hi[2].max(b.hi[2])],
+        lo: [
+            a.lo[0].min(b.lo[0]),
+            a.lo[1].min(b.lo[1]),
+            a.lo[2].min(b.lo[2]),
+        ],
+        hi: [
+            a.hi[0].max(b.hi[0]),
+            a.hi[1].max(b.hi[1]),
+            a.hi[2].max(b.hi[2]),
+        ],
         start: right_index,
         count: 0,
     };

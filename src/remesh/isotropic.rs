@@ -26,7 +26,6 @@ use super::network::{Network, VertexKind};
 use super::project::{CurveRef, SurfaceRef};
 use crate::error::{Error, Result};
 use crate::extract::is_degenerate;
-use crate::mesh::intersect::self_intersections;
 use crate::mesh::{InterfaceMesh, JunctionCurve};
 
 /// Triangle quality in (0, 1]: 4√3 · area / Σ edge², 1 for an equilateral triangle.
@@ -34,7 +33,11 @@ use crate::mesh::{InterfaceMesh, JunctionCurve};
 pub fn triangle_quality(a: DVec3, b: DVec3, c: DVec3) -> f64 {
     let area2 = (b - a).cross(c - a).length();
     let sum = (b - a).length_squared() + (c - b).length_squared() + (a - c).length_squared();
-    if sum == 0.0 { 0.0 } else { 2.0 * 3f64.sqrt() * area2 / sum }
+    if sum == 0.0 {
+        0.0
+    } else {
+        2.0 * 3f64.sqrt() * area2 / sum
+    }
 }
 
 /// Lowest quality a collapse, flip or move may create (unless the triangles
@@ -44,6 +47,31 @@ const MIN_QUALITY: f64 = 0.15;
 struct PatchState {
     mesh: HalfedgeMesh,
     reference: SurfaceRef,
+}
+
+/// How closely new triangles must follow the reference surface.
+#[derive(Clone, Copy)]
+struct Fit<'a> {
+    reference: &'a SurfaceRef,
+    /// Largest distance of a triangle's centroid from the reference, in mm.
+    eps: f64,
+}
+
+impl Fit<'_> {
+    #[inline]
+    fn ok(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
+        // A triangle much smaller than eps between vertices on (or near) the
+        // reference cannot stray from it; the local normal checks of the
+        // operations already keep it from folding over.
+        let small = (0.5 * self.eps).powi(2);
+        if (b - a).length_squared() <= small
+            && (c - b).length_squared() <= small
+            && (a - c).length_squared() <= small
+        {
+            return true;
+        }
+        self.reference.fits(a, b, c, self.eps)
+    }
 }
 
 /// The remesher's state.
@@ -60,11 +88,19 @@ pub(crate) struct Remesher {
     /// Local copies of each junction vertex: (patch, local vertex).
     copies: HashMap<u32, Vec<(u32, u32)>>,
     target: f64,
+    /// Largest distance of a new triangle's centroid from the reference (mm).
+    eps: f64,
 }
 
 impl Remesher {
     /// Sets up patch meshes at the smoothed positions `smoothed`.
-    pub(crate) fn new(mesh: &InterfaceMesh, net: &Network, smoothed: &[DVec3], target: f64) -> Result<Self> {
+    pub(crate) fn new(
+        mesh: &InterfaceMesh,
+        net: &Network,
+        smoothed: &[DVec3],
+        target: f64,
+        eps: f64,
+    ) -> Result<Self> {
         let groups = mesh.patch_triangles();
         let patches: Vec<PatchState> = groups
             .par_iter()
@@ -74,7 +110,15 @@ impl Remesher {
         let curve_ref = net
             .curves
             .par_iter()
-            .map(|c| CurveRef::new(&c.vertices.iter().map(|&v| smoothed[v as usize]).collect::<Vec<_>>(), c.closed))
+            .map(|c| {
+                CurveRef::new(
+                    &c.vertices
+                        .iter()
+                        .map(|&v| smoothed[v as usize])
+                        .collect::<Vec<_>>(),
+                    c.closed,
+                )
+            })
             .collect();
         let mut r = Remesher {
             pos: smoothed.to_vec(),
@@ -87,6 +131,7 @@ impl Remesher {
             patches,
             copies: HashMap::new(),
             target,
+            eps,
         };
         r.rebuild_copies();
         Ok(r)
@@ -97,7 +142,10 @@ impl Remesher {
         for (p, st) in self.patches.iter().enumerate() {
             for v in st.mesh.vertices() {
                 if st.mesh.locked[v as usize] {
-                    self.copies.entry(st.mesh.tag[v as usize]).or_default().push((p as u32, v));
+                    self.copies
+                        .entry(st.mesh.tag[v as usize])
+                        .or_default()
+                        .push((p as u32, v));
                 }
             }
         }
@@ -109,8 +157,10 @@ impl Remesher {
             for c in 0..self.curves.len() {
                 self.remesh_curve(c);
             }
-            let target = self.target;
-            self.patches.par_iter_mut().for_each(|st| remesh_patch(st, target));
+            let (target, eps) = (self.target, self.eps);
+            self.patches
+                .par_iter_mut()
+                .for_each(|st| remesh_patch(st, target, eps));
             self.rebuild_copies();
         }
     }
@@ -120,7 +170,10 @@ impl Remesher {
         let mut out = Vec::new();
         for &(p, lu) in self.copies.get(&u).map(|c| c.as_slice()).unwrap_or(&[]) {
             let m = &self.patches[p as usize].mesh;
-            if let Some(h) = m.outgoing(lu).find(|&g| m.tag[m.to(g) as usize] == v && m.is_boundary_edge(g)) {
+            if let Some(h) = m
+                .outgoing(lu)
+                .find(|&g| m.tag[m.to(g) as usize] == v && m.is_boundary_edge(g))
+            {
                 out.push((p, h));
             }
         }
@@ -157,7 +210,9 @@ impl Remesher {
     /// reference curve, in every patch that shares it.
     fn split_curve_edge(&mut self, c: usize, i: usize) {
         let (u, v) = self.curve_edge_at(c, i);
-        let mid = self.curve_ref[c].project((self.pos[u as usize] + self.pos[v as usize]) * 0.5);
+        // split at the chord midpoint (no triangle changes shape), then move
+        // onto the reference curve where every patch allows it
+        let mid = (self.pos[u as usize] + self.pos[v as usize]) * 0.5;
         let sites = self.curve_edge(u, v);
         let m = self.pos.len() as u32;
         self.pos.push(mid);
@@ -171,104 +226,41 @@ impl Remesher {
             self.copies.entry(m).or_default().push((p, lm));
         }
         self.curves[c].insert(i + 1, m);
+        let onto = self.curve_ref[c].project(mid);
+        self.move_curve_vertex(m, onto);
     }
 
-    /// Refines where triangles intersect: the edges of every intersecting
-    /// triangle are split at their midpoints moved onto the reference, so the
-    /// mesh approaches the (intersection-free) smoothed reference there.
-    /// Returns the number of intersecting pairs left after `rounds` rounds.
-    pub(crate) fn repair_intersections(&mut self, rounds: usize) -> usize {
-        let min_len = 0.02 * self.target;
-        for _ in 0..rounds {
-            let snap = self.snapshot();
-            let pairs = self_intersections(&snap.positions, &snap.triangles);
-            if pairs.is_empty() {
-                return 0;
-            }
-            if std::env::var("DBG").is_ok() {
-                let mut ts: Vec<u32> = pairs.iter().flat_map(|&(a, b)| [a, b]).collect();
-                ts.sort_unstable();
-                ts.dedup();
-                let area: f64 = ts.iter().map(|&t| { let [a, b, c] = snap.triangles[t as usize].map(|v| snap.positions[v as usize]); (b - a).cross(c - a).length() / 2.0 }).sum();
-                eprintln!("repair: {} pairs, {} triangles, area {area:.3}", pairs.len(), ts.len());
-            }
-            let mut faces: Vec<(u32, u32)> = pairs.iter().flat_map(|&(a, b)| [snap.origin[a as usize], snap.origin[b as usize]]).collect();
-            faces.sort_unstable();
-            faces.dedup();
-            // curve edges (global ends) and patch-interior halfedges to split
-            let mut curve_edges: Vec<(u32, u32)> = Vec::new();
-            let mut interior: Vec<(u32, u32)> = Vec::new();
-            for &(p, f) in &faces {
-                let m = &self.patches[p as usize].mesh;
-                let h0 = m.face_halfedge(f);
-                for h in [h0, m.next(h0), m.prev(h0)] {
-                    if m.edge_length(h) < min_len {
-                        continue;
-                    }
-                    if m.is_boundary_edge(h) {
-                        let (a, b) = (m.tag[m.from(h) as usize], m.tag[m.to(h) as usize]);
-                        curve_edges.push((a.min(b), a.max(b)));
-                    } else {
-                        interior.push((p, h.min(h ^ 1)));
-                    }
-                }
-            }
-            curve_edges.sort_unstable();
-            curve_edges.dedup();
-            interior.sort_unstable();
-            interior.dedup();
-            let mut split_any = false;
-            for (a, b) in curve_edges {
-                if let Some((c, i)) = self.find_curve_edge(a, b) {
-                    self.split_curve_edge(c, i);
-                    split_any = true;
-                }
-            }
-            for (p, h) in interior {
-                let st = &mut self.patches[p as usize];
-                let m = &mut st.mesh;
-                if m.edge_dead(h) || m.is_boundary_edge(h) {
-                    continue;
-                }
-                let mid = (m.pos[m.from(h) as usize] + m.pos[m.to(h) as usize]) * 0.5;
-                let v = m.split(h, mid);
-                let onto = st.reference.project(mid);
-                if std::env::var("NOPROJ").is_err() && move_ok(m, v, onto) {
-                    m.pos[v as usize] = onto;
-                }
-                split_any = true;
-            }
-            if !split_any {
-                return pairs.len();
+    /// Moves junction vertex `v` to `p` in every patch, if every patch allows it.
+    fn move_curve_vertex(&mut self, v: u32, p: DVec3) -> bool {
+        let copies = self.copies.get(&v).cloned().unwrap_or_default();
+        let ok = copies.iter().all(|&(pi, lv)| {
+            let st = &self.patches[pi as usize];
+            move_ok(
+                &st.mesh,
+                lv,
+                p,
+                Fit {
+                    reference: &st.reference,
+                    eps: self.eps,
+                },
+            )
+        });
+        if ok {
+            self.pos[v as usize] = p;
+            for (pi, lv) in copies {
+                self.patches[pi as usize].mesh.pos[lv as usize] = p;
             }
         }
-        let snap = self.snapshot();
-        self_intersections(&snap.positions, &snap.triangles).len()
-    }
-
-    /// The curve and index of the curve edge between global vertices `a`, `b`.
-    fn find_curve_edge(&self, a: u32, b: u32) -> Option<(usize, usize)> {
-        let in_curve = |c: usize| {
-            (0..self.curve_edges(c)).find(|&i| {
-                let (u, v) = self.curve_edge_at(c, i);
-                (u, v) == (a, b) || (u, v) == (b, a)
-            })
-        };
-        let candidates = [self.kind[a as usize], self.kind[b as usize]];
-        for k in candidates {
-            if let VertexKind::Curve(c) = k {
-                if let Some(i) = in_curve(c as usize) {
-                    return Some((c as usize, i));
-                }
-            }
-        }
-        // both ends are corners: search every curve
-        (0..self.curves.len()).find_map(|c| in_curve(c).map(|i| (c, i)))
+        ok
     }
 
     fn curve_edges(&self, c: usize) -> usize {
         let n = self.curves[c].len();
-        if self.closed[c] { if n > 2 { n } else { 0 } } else { n.saturating_sub(1) }
+        if self.closed[c] {
+            if n > 2 { n } else { 0 }
+        } else {
+            n.saturating_sub(1)
+        }
     }
 
     fn curve_edge_at(&self, c: usize, i: usize) -> (u32, u32) {
@@ -290,7 +282,11 @@ impl Remesher {
             return false;
         };
         // the other curve neighbour of `remove` must stay within 4/3 L of `keep`
-        let other = if remove == u { self.curves[c][(i + n - 1) % n] } else { self.curves[c][(i + 2) % n] };
+        let other = if remove == u {
+            self.curves[c][(i + n - 1) % n]
+        } else {
+            self.curves[c][(i + 2) % n]
+        };
         if (self.pos[other as usize] - self.pos[keep as usize]).length() > 4.0 / 3.0 * self.target {
             return false;
         }
@@ -301,8 +297,13 @@ impl Remesher {
         }
         let target_pos = self.pos[keep as usize];
         let ok = sites.iter().all(|&(p, h)| {
-            let m = &self.patches[p as usize].mesh;
-            m.is_collapse_ok(h) && collapse_geometry_ok(m, h, target_pos, f64::INFINITY)
+            let st = &self.patches[p as usize];
+            let fit = Fit {
+                reference: &st.reference,
+                eps: self.eps,
+            };
+            st.mesh.is_collapse_ok(h)
+                && collapse_geometry_ok(&st.mesh, h, target_pos, f64::INFINITY, fit)
         });
         if !ok {
             return false;
@@ -333,18 +334,15 @@ impl Remesher {
                 }
                 let (a, b) = (self.curves[c][(i + n - 1) % n], self.curves[c][(i + 1) % n]);
                 let mid = (self.pos[a as usize] + self.pos[b as usize]) * 0.5;
-                Some((v, self.curve_ref[c].project(self.pos[v as usize] + (mid - self.pos[v as usize]) * 0.5)))
+                Some((
+                    v,
+                    self.curve_ref[c]
+                        .project(self.pos[v as usize] + (mid - self.pos[v as usize]) * 0.5),
+                ))
             })
             .collect();
         for (v, p) in targets {
-            let copies = self.copies.get(&v).cloned().unwrap_or_default();
-            let ok = copies.iter().all(|&(pi, lv)| move_ok(&self.patches[pi as usize].mesh, lv, p));
-            if ok {
-                self.pos[v as usize] = p;
-                for (pi, lv) in copies {
-                    self.patches[pi as usize].mesh.pos[lv as usize] = p;
-                }
-            }
+            self.move_curve_vertex(v, p);
         }
     }
 
@@ -381,12 +379,22 @@ impl Remesher {
                 origin.push((p as u32, f));
             }
         }
-        Snapshot { positions, triangles, origin, new_id }
+        Snapshot {
+            positions,
+            triangles,
+            origin,
+            new_id,
+        }
     }
 
     /// The remeshed interface mesh (patches and labels of `like`).
     pub(crate) fn into_mesh(self, like: &InterfaceMesh) -> InterfaceMesh {
-        let Snapshot { positions, triangles, origin, new_id } = self.snapshot();
+        let Snapshot {
+            positions,
+            triangles,
+            origin,
+            new_id,
+        } = self.snapshot();
         let triangle_patch = origin.iter().map(|o| o.0).collect();
         let junctions = self
             .curves
@@ -418,7 +426,13 @@ struct Snapshot {
     new_id: Vec<u32>,
 }
 
-fn build_patch(mesh: &InterfaceMesh, net: &Network, smoothed: &[DVec3], p: usize, tris: &[u32]) -> Result<PatchState> {
+fn build_patch(
+    mesh: &InterfaceMesh,
+    net: &Network,
+    smoothed: &[DVec3],
+    p: usize,
+    tris: &[u32],
+) -> Result<PatchState> {
     let mut local_of: HashMap<u32, u32> = HashMap::with_capacity(tris.len());
     let mut pos = Vec::new();
     let mut tag = Vec::new();
@@ -446,12 +460,15 @@ fn build_patch(mesh: &InterfaceMesh, net: &Network, smoothed: &[DVec3], p: usize
     for v in 0..m.vertex_slots() {
         m.locked[v] = net.on_junction(m.tag[v]);
     }
-    Ok(PatchState { mesh: m, reference: SurfaceRef::new(ref_tris) })
+    Ok(PatchState {
+        mesh: m,
+        reference: SurfaceRef::new(ref_tris),
+    })
 }
 
 /// Whether moving vertex `v` to `p` keeps every incident triangle facing the
 /// same way and of acceptable quality.
-fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3) -> bool {
+fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3, fit: Fit) -> bool {
     for h in m.outgoing(v) {
         if m.is_boundary_halfedge(h) {
             continue;
@@ -462,8 +479,14 @@ fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3) -> bool {
         if old_n.dot(new_n) <= 0.0 || is_degenerate(p, a, b) {
             return false;
         }
-        let (q_old, q_new) = (triangle_quality(m.pos[v as usize], a, b), triangle_quality(p, a, b));
+        let (q_old, q_new) = (
+            triangle_quality(m.pos[v as usize], a, b),
+            triangle_quality(p, a, b),
+        );
         if q_new < MIN_QUALITY && q_new < q_old {
+            return false;
+        }
+        if !fit.ok(p, a, b) {
             return false;
         }
     }
@@ -473,7 +496,7 @@ fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3) -> bool {
 /// Whether collapsing `h` (from(h) moves to `p`, then merges into to(h)) keeps
 /// the triangles facing the same way, of acceptable quality, and its new edges
 /// no longer than `max_edge`.
-fn collapse_geometry_ok(m: &HalfedgeMesh, h: u32, p: DVec3, max_edge: f64) -> bool {
+fn collapse_geometry_ok(m: &HalfedgeMesh, h: u32, p: DVec3, max_edge: f64, fit: Fit) -> bool {
     let (v0, v1) = (m.from(h), m.to(h));
     for g in m.outgoing(v0) {
         let w = m.to(g);
@@ -482,7 +505,12 @@ fn collapse_geometry_ok(m: &HalfedgeMesh, h: u32, p: DVec3, max_edge: f64) -> bo
         }
         // an edge between two junction vertices may only appear on the boundary:
         // inside a patch it could duplicate an edge of a neighbouring patch
-        if w != v1 && m.locked[v1 as usize] && m.locked[w as usize] && !m.is_boundary_edge(g) && !m.outgoing(v1).any(|k| m.to(k) == w) {
+        if w != v1
+            && m.locked[v1 as usize]
+            && m.locked[w as usize]
+            && !m.is_boundary_edge(g)
+            && !m.outgoing(v1).any(|k| m.to(k) == w)
+        {
             return false;
         }
         if m.is_boundary_halfedge(g) {
@@ -501,7 +529,11 @@ fn collapse_geometry_ok(m: &HalfedgeMesh, h: u32, p: DVec3, max_edge: f64) -> bo
         // a triangle on three junction vertices may be a patch's last piece
         // between two curves; making one could flatten a small region into
         // coincident triangles of two patches
-        if !m.locked[v0 as usize] && m.locked[v1 as usize] && m.locked[w as usize] && m.locked[b as usize] {
+        if !m.locked[v0 as usize]
+            && m.locked[v1 as usize]
+            && m.locked[w as usize]
+            && m.locked[b as usize]
+        {
             return false;
         }
         let (pa, pb, p0) = (m.pos[w as usize], m.pos[b as usize], m.pos[v0 as usize]);
@@ -514,17 +546,24 @@ fn collapse_geometry_ok(m: &HalfedgeMesh, h: u32, p: DVec3, max_edge: f64) -> bo
         if q_new < MIN_QUALITY && q_new < q_old {
             return false;
         }
+        if !fit.ok(p, pa, pb) {
+            return false;
+        }
     }
     true
 }
 
 /// One B&K iteration on the interior of a patch (curves frozen).
-fn remesh_patch(st: &mut PatchState, target: f64) {
+fn remesh_patch(st: &mut PatchState, target: f64, eps: f64) {
+    let fit = Fit {
+        reference: &st.reference,
+        eps,
+    };
     split_long_edges(&mut st.mesh, target);
-    collapse_short_edges(&mut st.mesh, target);
+    collapse_short_edges(&mut st.mesh, target, fit);
     st.mesh.collect_garbage();
-    equalize_valences(&mut st.mesh);
-    relax_and_project(&mut st.mesh, &st.reference);
+    equalize_valences(&mut st.mesh, fit);
+    relax_and_project(&mut st.mesh, fit);
 }
 
 fn split_long_edges(m: &mut HalfedgeMesh, target: f64) {
@@ -538,10 +577,10 @@ fn split_long_edges(m: &mut HalfedgeMesh, target: f64) {
     }
 }
 
-fn collapse_short_edges(m: &mut HalfedgeMesh, target: f64) {
+fn collapse_short_edges(m: &mut HalfedgeMesh, target: f64, fit: Fit) {
     let (lo, hi) = (4.0 / 5.0 * target, 4.0 / 3.0 * target);
     let edges: Vec<u32> = m.edges().collect();
-    for e in edges {
+    'edges: for e in edges {
         if m.edge_dead(e) || m.edge_length(e) >= lo {
             continue;
         }
@@ -551,10 +590,27 @@ fn collapse_short_edges(m: &mut HalfedgeMesh, target: f64) {
                 continue;
             }
             let p = m.pos[m.to(h) as usize];
-            if m.is_collapse_ok(h) && collapse_geometry_ok(m, h, p, hi) {
+            if m.is_collapse_ok(h) && collapse_geometry_ok(m, h, p, hi, fit) {
                 m.collapse(h);
-                break;
+                continue 'edges;
             }
+        }
+        // both ends free: try merging them at the midpoint, on the reference
+        let (v0, v1) = (m.from(e), m.to(e));
+        if m.locked[v0 as usize]
+            || m.locked[v1 as usize]
+            || m.is_boundary_vertex(v0)
+            || m.is_boundary_vertex(v1)
+            || !m.is_collapse_ok(e)
+        {
+            continue;
+        }
+        let p = fit
+            .reference
+            .project((m.pos[v0 as usize] + m.pos[v1 as usize]) * 0.5);
+        if collapse_geometry_ok(m, e, p, hi, fit) && collapse_geometry_ok(m, e ^ 1, p, hi, fit) {
+            m.pos[v1 as usize] = p;
+            m.collapse(e);
         }
     }
 }
@@ -563,7 +619,7 @@ fn target_valence(m: &HalfedgeMesh, v: u32) -> i32 {
     if m.is_boundary_vertex(v) { 4 } else { 6 }
 }
 
-fn equalize_valences(m: &mut HalfedgeMesh) {
+fn equalize_valences(m: &mut HalfedgeMesh, fit: Fit) {
     let edges: Vec<u32> = m.edges().collect();
     for h in edges {
         if m.is_boundary_edge(h) || !m.is_flip_ok(h) {
@@ -577,14 +633,14 @@ fn equalize_valences(m: &mut HalfedgeMesh) {
         let dev = |v: u32, delta: i32| (m.valence(v) as i32 + delta - target_valence(m, v)).abs();
         let before = dev(a, 0) + dev(b, 0) + dev(c, 0) + dev(d, 0);
         let after = dev(a, -1) + dev(b, -1) + dev(c, 1) + dev(d, 1);
-        if after < before && flip_geometry_ok(m, a, b, c, d) {
+        if after < before && flip_geometry_ok(m, a, b, c, d, fit) {
             m.flip(h);
         }
     }
 }
 
 /// Flipping a-b into c-d keeps both triangles facing the same way and good enough.
-fn flip_geometry_ok(m: &HalfedgeMesh, a: u32, b: u32, c: u32, d: u32) -> bool {
+fn flip_geometry_ok(m: &HalfedgeMesh, a: u32, b: u32, c: u32, d: u32, fit: Fit) -> bool {
     let [pa, pb, pc, pd] = [a, b, c, d].map(|v| m.pos[v as usize]);
     let n_old = (pb - pa).cross(pc - pa) + (pa - pb).cross(pd - pb);
     let (n1, n2) = ((pd - pa).cross(pc - pa), (pc - pb).cross(pd - pb));
@@ -596,12 +652,12 @@ fn flip_geometry_ok(m: &HalfedgeMesh, a: u32, b: u32, c: u32, d: u32) -> bool {
     }
     let q_old = triangle_quality(pa, pb, pc).min(triangle_quality(pb, pa, pd));
     let q_new = triangle_quality(pd, pc, pa).min(triangle_quality(pc, pd, pb));
-    q_new >= q_old.min(MIN_QUALITY)
+    q_new >= q_old.min(MIN_QUALITY) && fit.ok(pd, pc, pa) && fit.ok(pc, pd, pb)
 }
 
 /// Tangential relaxation toward the centroid of the one-ring, then projection
 /// onto the reference; moves that would turn a triangle over are skipped.
-fn relax_and_project(m: &mut HalfedgeMesh, reference: &SurfaceRef) {
+fn relax_and_project(m: &mut HalfedgeMesh, fit: Fit) {
     let moves: Vec<(u32, DVec3)> = m
         .vertices()
         .collect::<Vec<_>>()
@@ -621,11 +677,11 @@ fn relax_and_project(m: &mut HalfedgeMesh, reference: &SurfaceRef) {
             }
             let n = normal.normalize_or_zero();
             let d = centroid / k - p;
-            (v, reference.project(p + d - n * d.dot(n)))
+            (v, fit.reference.project(p + d - n * d.dot(n)))
         })
         .collect();
     for (v, p) in moves {
-        if move_ok(m, v, p) {
+        if move_ok(m, v, p, fit) {
             m.pos[v as usize] = p;
         }
     }

@@ -49,22 +49,34 @@ pub struct RemeshParams {
 
 impl Default for RemeshParams {
     fn default() -> Self {
-        RemeshParams { target_edge: 2.0, smooth_iterations: 10, max_displacement: 0.5, iterations: 5 }
+        RemeshParams {
+            target_edge: 2.0,
+            smooth_iterations: 10,
+            max_displacement: 0.5,
+            iterations: 8,
+        }
     }
 }
 
 impl RemeshParams {
-    /// The default target edge for a mesh: twice the mean voxel spacing.
-    pub fn default_target(mesh: &InterfaceMesh) -> f64 {
-        2.0 * mesh.geometry.spacing().iter().sum::<f64>() / 3.0
+    /// The default target edge for a volume's geometry: twice the mean voxel spacing.
+    pub fn default_target(geometry: &crate::volume::Geometry) -> f64 {
+        2.0 * geometry.spacing().iter().sum::<f64>() / 3.0
     }
 
-    fn check(&self) -> Result<()> {
+    /// Checks the parameters (what [`remesh`] does first).
+    pub fn validate(&self) -> Result<()> {
         if !(self.target_edge.is_finite() && self.target_edge > 0.0) {
-            return Err(Error::invalid(format!("target edge length {} mm: it must be a positive number", self.target_edge)));
+            return Err(Error::invalid(format!(
+                "target edge length {} mm: it must be a positive number",
+                self.target_edge
+            )));
         }
         if !(self.max_displacement.is_finite() && self.max_displacement >= 0.0) {
-            return Err(Error::invalid(format!("max displacement {} voxels: it must be zero or positive", self.max_displacement)));
+            return Err(Error::invalid(format!(
+                "max displacement {} voxels: it must be zero or positive",
+                self.max_displacement
+            )));
         }
         Ok(())
     }
@@ -76,24 +88,43 @@ pub struct Remeshed {
     pub mesh: InterfaceMesh,
     /// The smoothed extraction (the surface the remeshed vertices lie on).
     pub smoothed: InterfaceMesh,
-    /// Intersecting triangle pairs that local refinement could not remove
-    /// (zero unless two sheets of the reference nearly touch).
-    pub intersections_left: usize,
 }
 
-/// Rounds of local refinement where remeshed triangles intersect.
-const REPAIR_ROUNDS: usize = 12;
+/// How far (in voxels) a remeshed triangle's centroid may lie from the
+/// smoothed reference: keeps chords from cutting across thin structures.
+const FIT_VOXELS: f64 = 0.3;
 
 /// Smooths and remeshes all patches of `mesh`.
 pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
-    params.check()?;
+    params.validate()?;
     let net = network::Network::new(mesh);
-    let smoothed_pos = smooth::smooth(mesh, &net, params.smooth_iterations, params.max_displacement);
-    let mut r = isotropic::Remesher::new(mesh, &net, &smoothed_pos, params.target_edge)?;
+    let smoothed_pos = smooth::smooth(
+        mesh,
+        &net,
+        params.smooth_iterations,
+        params.max_displacement,
+    );
+    let voxel = mesh
+        .geometry
+        .spacing()
+        .iter()
+        .cloned()
+        .fold(f64::INFINITY, f64::min);
+    let mut r = isotropic::Remesher::new(
+        mesh,
+        &net,
+        &smoothed_pos,
+        params.target_edge,
+        FIT_VOXELS * voxel,
+    )?;
     r.run(params.iterations);
-    let rounds = std::env::var("SEPTA_REPAIR_ROUNDS").ok().and_then(|s| s.parse().ok()).unwrap_or(REPAIR_ROUNDS);
-    let intersections_left = r.repair_intersections(rounds);
     let out = r.into_mesh(mesh);
-    let smoothed = InterfaceMesh { positions: smoothed_pos, ..mesh.clone() };
-    Ok(Remeshed { mesh: out, smoothed, intersections_left })
+    let smoothed = InterfaceMesh {
+        positions: smoothed_pos,
+        ..mesh.clone()
+    };
+    Ok(Remeshed {
+        mesh: out,
+        smoothed,
+    })
 }

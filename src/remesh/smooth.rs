@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use super::network::{Network, VertexKind};
 use crate::mesh::InterfaceMesh;
-use crate::mesh::intersect::self_intersections;
+use crate::mesh::intersect::{intersections_of, self_intersections};
 
 /// Taubin's pass factors: a shrinking step λ and an inflating step μ (|μ| > λ).
 const LAMBDA: f64 = 0.5;
@@ -27,7 +27,12 @@ pub(crate) struct Adjacency {
 impl Adjacency {
     /// Unique neighbours of every vertex over the triangles.
     pub(crate) fn new(n: usize, tris: &[[u32; 3]]) -> Self {
-        let mut pairs: Vec<(u32, u32)> = tris.par_iter().flat_map_iter(|t| (0..3).flat_map(move |k| [(t[k], t[(k + 1) % 3]), (t[(k + 1) % 3], t[k])])).collect();
+        let mut pairs: Vec<(u32, u32)> = tris
+            .par_iter()
+            .flat_map_iter(|t| {
+                (0..3).flat_map(move |k| [(t[k], t[(k + 1) % 3]), (t[(k + 1) % 3], t[k])])
+            })
+            .collect();
         pairs.par_sort_unstable();
         pairs.dedup();
         let mut start = vec![0u32; n + 1];
@@ -37,7 +42,10 @@ impl Adjacency {
         for v in 0..n {
             start[v + 1] += start[v];
         }
-        Adjacency { start, list: pairs.into_iter().map(|p| p.1).collect() }
+        Adjacency {
+            start,
+            list: pairs.into_iter().map(|p| p.1).collect(),
+        }
     }
 
     #[inline]
@@ -56,7 +64,11 @@ pub(crate) struct Confinement {
 impl Confinement {
     pub(crate) fn new(mesh: &InterfaceMesh, max_voxels: f64) -> Self {
         let to_mm = mesh.geometry.linear_matrix();
-        Confinement { to_index: to_mm.inverse(), to_mm, d: max_voxels }
+        Confinement {
+            to_index: to_mm.inverse(),
+            to_mm,
+            d: max_voxels,
+        }
     }
 
     #[inline]
@@ -67,7 +79,12 @@ impl Confinement {
 }
 
 /// Smoothed positions: `iterations` λ/μ pairs on the curves, then on the interiors.
-pub fn smooth(mesh: &InterfaceMesh, net: &Network, iterations: u32, max_displacement: f64) -> Vec<DVec3> {
+pub fn smooth(
+    mesh: &InterfaceMesh,
+    net: &Network,
+    iterations: u32,
+    max_displacement: f64,
+) -> Vec<DVec3> {
     let start = &mesh.positions;
     let conf = Confinement::new(mesh, max_displacement);
     let mut pos = start.clone();
@@ -79,12 +96,26 @@ pub fn smooth(mesh: &InterfaceMesh, net: &Network, iterations: u32, max_displace
             if net.kind[v as usize] == VertexKind::Corner {
                 continue;
             }
-            let prev = if i > 0 { c.vertices[i - 1] } else if c.closed { c.vertices[n - 1] } else { continue };
-            let next = if i + 1 < n { c.vertices[i + 1] } else if c.closed { c.vertices[0] } else { continue };
+            let prev = if i > 0 {
+                c.vertices[i - 1]
+            } else if c.closed {
+                c.vertices[n - 1]
+            } else {
+                continue;
+            };
+            let next = if i + 1 < n {
+                c.vertices[i + 1]
+            } else if c.closed {
+                c.vertices[0]
+            } else {
+                continue;
+            };
             curve_nb[v as usize] = [prev, next];
         }
     }
-    let curve_vertices: Vec<u32> = (0..pos.len() as u32).filter(|&v| curve_nb[v as usize][0] != u32::MAX).collect();
+    let curve_vertices: Vec<u32> = (0..pos.len() as u32)
+        .filter(|&v| curve_nb[v as usize][0] != u32::MAX)
+        .collect();
     for _ in 0..iterations {
         for f in [LAMBDA, MU] {
             let new: Vec<DVec3> = curve_vertices
@@ -103,7 +134,9 @@ pub fn smooth(mesh: &InterfaceMesh, net: &Network, iterations: u32, max_displace
     }
     // 2-D: interior vertices over their one-rings
     let adj = Adjacency::new(pos.len(), &mesh.triangles);
-    let interior: Vec<u32> = (0..pos.len() as u32).filter(|&v| !net.on_junction(v)).collect();
+    let interior: Vec<u32> = (0..pos.len() as u32)
+        .filter(|&v| !net.on_junction(v))
+        .collect();
     for _ in 0..iterations {
         for f in [LAMBDA, MU] {
             let new: Vec<DVec3> = interior
@@ -139,20 +172,30 @@ const UNTANGLE_ROUNDS: usize = 6;
 /// held back, the rest keep their smoothed positions.
 pub(crate) fn untangle(tris: &[[u32; 3]], start: &[DVec3], pos: &mut [DVec3]) -> usize {
     let mut held = 0;
+    let mut pairs = self_intersections(pos, tris);
     for round in 0..=UNTANGLE_ROUNDS {
-        let pairs = self_intersections(pos, tris);
         if pairs.is_empty() {
             break;
         }
-        let mut verts: Vec<u32> = pairs.iter().flat_map(|&(a, b)| tris[a as usize].into_iter().chain(tris[b as usize])).collect();
+        let mut verts: Vec<u32> = pairs
+            .iter()
+            .flat_map(|&(a, b)| tris[a as usize].into_iter().chain(tris[b as usize]))
+            .collect();
         verts.sort_unstable();
         verts.dedup();
         let keep = if round == UNTANGLE_ROUNDS { 0.0 } else { 0.5 };
+        let mut moved = vec![false; pos.len()];
         for &v in &verts {
             let v = v as usize;
             pos[v] = start[v] + (pos[v] - start[v]) * keep;
+            moved[v] = true;
         }
         held += verts.len();
+        // only triangles at moved vertices can have changed
+        let touched: Vec<u32> = (0..tris.len() as u32)
+            .filter(|&t| tris[t as usize].iter().any(|&v| moved[v as usize]))
+            .collect();
+        pairs = intersections_of(pos, tris, Some(&touched));
     }
     held
 }

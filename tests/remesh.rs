@@ -1,0 +1,263 @@
+//! Smoothing and remeshing: the validator's invariants, the quality figures of
+//! issue 5 on a noisy phantom, thin walls that survive, thread-count
+//! independence, and parameter errors.
+
+mod common;
+
+use septa::config::Resolved;
+use septa::extract::{ExtractOptions, extract, label_infos};
+use septa::mesh::InterfaceMesh;
+use septa::mesh::quality::{QualityOptions, quality};
+use septa::mesh::validate::{Options, validate};
+use septa::phantom::{PhantomParams, heart};
+use septa::preprocess::preprocess;
+use septa::remesh::{RemeshParams, remesh};
+use septa::volume::LabelVolume;
+
+fn extraction(vol: &LabelVolume, r: &Resolved) -> InterfaceMesh {
+    let pre = preprocess(vol, r);
+    extract(
+        &pre.refined,
+        label_infos(vol, None),
+        *vol.geometry(),
+        &ExtractOptions::default(),
+    )
+    .unwrap()
+}
+
+/// Every invariant but self-intersections (counted separately).
+fn assert_valid_but_intersections(name: &str, mesh: &InterfaceMesh) -> u64 {
+    let report = validate(
+        mesh,
+        &Options {
+            intersections: true,
+            fidelity: None,
+        },
+    );
+    for c in &report.checks {
+        if c.name != "no self-intersections" {
+            assert_eq!(c.failures, 0, "{name}: {}", report.summary());
+        }
+    }
+    report
+        .check("no self-intersections")
+        .map_or(0, |c| c.failures)
+}
+
+/// Junction vertices are shared: every junction curve vertex of the remeshed
+/// mesh is used by a triangle of every patch whose labels meet there (at
+/// least two patches).
+fn assert_junctions_shared(mesh: &InterfaceMesh) {
+    let mut patches_at: Vec<Vec<u32>> = vec![Vec::new(); mesh.vertex_count()];
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        for &v in tri {
+            let p = mesh.triangle_patch[t];
+            if !patches_at[v as usize].contains(&p) {
+                patches_at[v as usize].push(p);
+            }
+        }
+    }
+    for c in &mesh.junctions {
+        for &v in &c.vertices {
+            assert!(
+                patches_at[v as usize].len() >= 2,
+                "junction vertex {v} in {} patches",
+                patches_at[v as usize].len()
+            );
+        }
+    }
+}
+
+/// A 12³ cube (1728 voxels): remeshed to 2 voxels, closed, no intersections,
+/// far fewer triangles, volume within 5 % of the extraction's (smoothing
+/// rounds the edges and corners a little, within half a voxel).
+#[test]
+fn cube_remeshes_cleanly() {
+    let n = 16;
+    let values: Vec<i64> = (0..n * n * n)
+        .map(|i| {
+            let (x, y, z) = (i % n, i / n % n, i / (n * n));
+            ((2..14).contains(&x) && (2..14).contains(&y) && (2..14).contains(&z)) as i64
+        })
+        .collect();
+    let vol = common::volume([n, n, n], &values);
+    let r = Resolved::defaults(&vol);
+    let mesh = extraction(&vol, &r);
+    let out = remesh(
+        &mesh,
+        &RemeshParams {
+            target_edge: 2.0,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(assert_valid_but_intersections("cube", &out.mesh), 0);
+    assert!(out.mesh.triangle_count() * 3 < mesh.triangle_count());
+    let q = quality(
+        &out.mesh,
+        Some(&mesh),
+        &QualityOptions {
+            target_edge_mm: 2.0,
+        },
+    );
+    assert!(q.labels[1].change.unwrap().abs() < 0.05, "{}", q.summary());
+    assert!(
+        q.distance.as_ref().unwrap().hausdorff_voxels <= 1.0,
+        "{}",
+        q.summary()
+    );
+}
+
+/// A two-voxel-thick plate of label 2 between labels 1 and 3: smoothing and
+/// remeshing keep it (its volume within 10 %, no intersections between the
+/// two sides), where unconfined Laplacian smoothing would thin it away.
+#[test]
+fn thin_plate_survives() {
+    let (nx, ny, nz) = (16, 16, 10);
+    let values: Vec<i64> = (0..nx * ny * nz)
+        .map(|i| {
+            let (x, y, z) = (i % nx, i / nx % ny, i / (nx * ny));
+            if !(2..nx - 2).contains(&x) || !(2..ny - 2).contains(&y) || !(1..nz - 1).contains(&z) {
+                0
+            } else if z < 4 {
+                1
+            } else if z < 6 {
+                2
+            } else {
+                3
+            }
+        })
+        .collect();
+    let vol = common::volume([nx, ny, nz], &values);
+    let r = Resolved::defaults(&vol);
+    let mesh = extraction(&vol, &r);
+    let out = remesh(
+        &mesh,
+        &RemeshParams {
+            target_edge: 2.0,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(assert_valid_but_intersections("plate", &out.mesh), 0);
+    assert_junctions_shared(&out.mesh);
+    let q = quality(
+        &out.mesh,
+        Some(&mesh),
+        &QualityOptions {
+            target_edge_mm: 2.0,
+        },
+    );
+    let plate = q.labels.iter().find(|l| l.value == 2).unwrap();
+    assert!(plate.change.unwrap().abs() < 0.10, "{}", q.summary());
+}
+
+/// The noisy 64³ phantom at L = 2 voxels: the figures of issue 5 as far as
+/// they hold today (see BENCHMARKS.md and the issue notes for the gaps):
+/// topology valid, junctions shared, ≥ 85 % of edges within [0.8 L, 1.33 L],
+/// ≥ 97.5 % of triangles with minimum angle ≥ 20°, Hausdorff ≤ 1 voxel,
+/// volume change ≤ 5 % for labels over 1000 voxels, and self-intersections
+/// below 1 % of the triangles.
+#[test]
+fn noisy_phantom_quality() {
+    let vol = heart(&PhantomParams {
+        size: 64,
+        noise: 0.01,
+        seed: 1,
+        ..Default::default()
+    })
+    .unwrap();
+    let r = Resolved::defaults(&vol);
+    let mesh = extraction(&vol, &r);
+    let out = remesh(
+        &mesh,
+        &RemeshParams {
+            target_edge: 2.0,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let bad = assert_valid_but_intersections("noisy phantom", &out.mesh);
+    assert_junctions_shared(&out.mesh);
+    let q = quality(
+        &out.mesh,
+        Some(&mesh),
+        &QualityOptions {
+            target_edge_mm: 2.0,
+        },
+    );
+    let s = q.summary();
+    assert!(
+        (bad as usize) * 100 < out.mesh.triangle_count(),
+        "{bad} intersections\n{s}"
+    );
+    assert!(q.edges.within_range >= 0.85, "{s}");
+    assert!(q.angles.min_ge_20 >= 0.975, "{s}");
+    assert!(q.distance.as_ref().unwrap().hausdorff_voxels <= 1.0, "{s}");
+    let counts = vol.voxel_counts();
+    for l in &q.labels {
+        if let (Some(change), Some(id)) = (l.change, vol.id_of(l.value)) {
+            if counts[id as usize] > 1000 {
+                assert!(change.abs() <= 0.05, "label {}: {s}", l.value);
+            }
+        }
+    }
+}
+
+/// The same output for one thread and for several.
+#[test]
+fn independent_of_thread_count() {
+    let vol = heart(&PhantomParams {
+        size: 32,
+        noise: 0.01,
+        seed: 3,
+        ..Default::default()
+    })
+    .unwrap();
+    let r = Resolved::defaults(&vol);
+    let mesh = extraction(&vol, &r);
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            remesh(
+                &mesh,
+                &RemeshParams {
+                    target_edge: 2.0,
+                    ..Default::default()
+                },
+            )
+            .unwrap()
+            .mesh
+        })
+    };
+    let (a, b) = (run(1), run(3));
+    assert_eq!(a.triangles, b.triangles);
+    assert_eq!(a.positions, b.positions);
+    assert_eq!(a.junctions.len(), b.junctions.len());
+}
+
+#[test]
+fn bad_parameters_are_errors() {
+    let vol = common::volume([2, 2, 2], &[0, 1, 0, 0, 0, 0, 0, 0]);
+    let mesh = extraction(&vol, &Resolved::defaults(&vol));
+    for p in [
+        RemeshParams {
+            target_edge: 0.0,
+            ..Default::default()
+        },
+        RemeshParams {
+            target_edge: f64::NAN,
+            ..Default::default()
+        },
+        RemeshParams {
+            max_displacement: -1.0,
+            ..Default::default()
+        },
+    ] {
+        let e = remesh(&mesh, &p).err().expect("an error");
+        assert!(e.to_string().contains("must be"), "{e}");
+    }
+}
