@@ -44,22 +44,22 @@ pub fn triangle_quality(a: DVec3, b: DVec3, c: DVec3) -> f64 {
 /// it replaces were worse).
 const MIN_QUALITY: f64 = 0.15;
 
-struct PatchState {
-    mesh: HalfedgeMesh,
-    reference: SurfaceRef,
+pub(super) struct PatchState {
+    pub(super) mesh: HalfedgeMesh,
+    pub(super) reference: SurfaceRef,
 }
 
 /// How closely new triangles must follow the reference surface.
 #[derive(Clone, Copy)]
-struct Fit<'a> {
-    reference: &'a SurfaceRef,
+pub(super) struct Fit<'a> {
+    pub(super) reference: &'a SurfaceRef,
     /// Largest distance of a triangle's centroid from the reference, in mm.
-    eps: f64,
+    pub(super) eps: f64,
 }
 
 impl Fit<'_> {
     #[inline]
-    fn ok(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
+    pub(super) fn ok(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
         // A triangle much smaller than eps between vertices on (or near) the
         // reference cannot stray from it; the local normal checks of the
         // operations already keep it from folding over.
@@ -77,19 +77,19 @@ impl Fit<'_> {
 /// The remesher's state.
 pub(crate) struct Remesher {
     /// Positions of junction vertices (global ids); interior vertices live in the patches.
-    pos: Vec<DVec3>,
-    kind: Vec<VertexKind>,
-    alive: Vec<bool>,
-    curves: Vec<Vec<u32>>,
-    closed: Vec<bool>,
-    curve_labels: Vec<Vec<crate::volume::LabelId>>,
-    curve_ref: Vec<CurveRef>,
-    patches: Vec<PatchState>,
+    pub(super) pos: Vec<DVec3>,
+    pub(super) kind: Vec<VertexKind>,
+    pub(super) alive: Vec<bool>,
+    pub(super) curves: Vec<Vec<u32>>,
+    pub(super) closed: Vec<bool>,
+    pub(super) curve_labels: Vec<Vec<crate::volume::LabelId>>,
+    pub(super) curve_ref: Vec<CurveRef>,
+    pub(super) patches: Vec<PatchState>,
     /// Local copies of each junction vertex: (patch, local vertex).
-    copies: HashMap<u32, Vec<(u32, u32)>>,
-    target: f64,
+    pub(super) copies: HashMap<u32, Vec<(u32, u32)>>,
+    pub(super) target: f64,
     /// Largest distance of a new triangle's centroid from the reference (mm).
-    eps: f64,
+    pub(super) eps: f64,
 }
 
 impl Remesher {
@@ -207,11 +207,18 @@ impl Remesher {
     }
 
     /// Splits edge `i` of curve `c` at its midpoint projected onto the
-    /// reference curve, in every patch that shares it.
+    /// reference curve (where every patch allows the move), in every patch
+    /// that shares it.
     fn split_curve_edge(&mut self, c: usize, i: usize) {
+        let m = self.split_curve_edge_at_chord(c, i);
+        let onto = self.curve_ref[c].project(self.pos[m as usize]);
+        self.move_curve_vertex(m, onto);
+    }
+
+    /// Splits edge `i` of curve `c` at its chord midpoint (no triangle changes
+    /// shape) in every patch that shares it; returns the new junction vertex.
+    fn split_curve_edge_at_chord(&mut self, c: usize, i: usize) -> u32 {
         let (u, v) = self.curve_edge_at(c, i);
-        // split at the chord midpoint (no triangle changes shape), then move
-        // onto the reference curve where every patch allows it
         let mid = (self.pos[u as usize] + self.pos[v as usize]) * 0.5;
         let sites = self.curve_edge(u, v);
         let m = self.pos.len() as u32;
@@ -226,8 +233,7 @@ impl Remesher {
             self.copies.entry(m).or_default().push((p, lm));
         }
         self.curves[c].insert(i + 1, m);
-        let onto = self.curve_ref[c].project(mid);
-        self.move_curve_vertex(m, onto);
+        m
     }
 
     /// Moves junction vertex `v` to `p` in every patch, if every patch allows it.
@@ -348,7 +354,7 @@ impl Remesher {
 
     /// The current triangles over global vertex ids, with the (patch, face)
     /// each comes from.
-    fn snapshot(&self) -> Snapshot {
+    pub(super) fn snapshot(&self) -> Snapshot {
         // junction vertices keep a global numbering; interior ones follow per patch
         let mut new_id = vec![NONE; self.pos.len()];
         let mut positions = Vec::new();
@@ -360,6 +366,8 @@ impl Remesher {
         }
         let mut triangles = Vec::new();
         let mut origin = Vec::new();
+        let mut local_ids = Vec::with_capacity(self.patches.len());
+        let mut face_index = Vec::with_capacity(self.patches.len());
         for (p, st) in self.patches.iter().enumerate() {
             let m = &st.mesh;
             let mut local = vec![NONE; m.vertex_slots()];
@@ -371,19 +379,25 @@ impl Remesher {
                     (positions.len() - 1) as u32
                 };
             }
+            let mut faces = vec![NONE; m.face_slots()];
             for f in 0..m.face_slots() as u32 {
                 if m.face_dead(f) {
                     continue;
                 }
+                faces[f as usize] = triangles.len() as u32;
                 triangles.push(m.face_vertices(f).map(|v| local[v as usize]));
                 origin.push((p as u32, f));
             }
+            local_ids.push(local);
+            face_index.push(faces);
         }
         Snapshot {
             positions,
             triangles,
             origin,
             new_id,
+            local_ids,
+            face_index,
         }
     }
 
@@ -394,6 +408,7 @@ impl Remesher {
             triangles,
             origin,
             new_id,
+            ..
         } = self.snapshot();
         let triangle_patch = origin.iter().map(|o| o.0).collect();
         let junctions = self
@@ -419,11 +434,15 @@ impl Remesher {
     }
 }
 
-struct Snapshot {
-    positions: Vec<DVec3>,
-    triangles: Vec<[u32; 3]>,
-    origin: Vec<(u32, u32)>,
-    new_id: Vec<u32>,
+pub(super) struct Snapshot {
+    pub(super) positions: Vec<DVec3>,
+    pub(super) triangles: Vec<[u32; 3]>,
+    pub(super) origin: Vec<(u32, u32)>,
+    pub(super) new_id: Vec<u32>,
+    /// Per patch: snapshot vertex id of each local vertex.
+    pub(super) local_ids: Vec<Vec<u32>>,
+    /// Per patch: snapshot triangle of each face (`NONE` if dead).
+    pub(super) face_index: Vec<Vec<u32>>,
 }
 
 fn build_patch(
@@ -468,7 +487,7 @@ fn build_patch(
 
 /// Whether moving vertex `v` to `p` keeps every incident triangle facing the
 /// same way and of acceptable quality.
-fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3, fit: Fit) -> bool {
+pub(super) fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3, fit: Fit) -> bool {
     for h in m.outgoing(v) {
         if m.is_boundary_halfedge(h) {
             continue;
@@ -496,7 +515,13 @@ fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3, fit: Fit) -> bool {
 /// Whether collapsing `h` (from(h) moves to `p`, then merges into to(h)) keeps
 /// the triangles facing the same way, of acceptable quality, and its new edges
 /// no longer than `max_edge`.
-fn collapse_geometry_ok(m: &HalfedgeMesh, h: u32, p: DVec3, max_edge: f64, fit: Fit) -> bool {
+pub(super) fn collapse_geometry_ok(
+    m: &HalfedgeMesh,
+    h: u32,
+    p: DVec3,
+    max_edge: f64,
+    fit: Fit,
+) -> bool {
     let (v0, v1) = (m.from(h), m.to(h));
     for g in m.outgoing(v0) {
         let w = m.to(g);
@@ -640,7 +665,7 @@ fn equalize_valences(m: &mut HalfedgeMesh, fit: Fit) {
 }
 
 /// Flipping a-b into c-d keeps both triangles facing the same way and good enough.
-fn flip_geometry_ok(m: &HalfedgeMesh, a: u32, b: u32, c: u32, d: u32, fit: Fit) -> bool {
+pub(super) fn flip_geometry_ok(m: &HalfedgeMesh, a: u32, b: u32, c: u32, d: u32, fit: Fit) -> bool {
     let [pa, pb, pc, pd] = [a, b, c, d].map(|v| m.pos[v as usize]);
     let n_old = (pb - pa).cross(pc - pa) + (pa - pb).cross(pd - pb);
     let (n1, n2) = ((pd - pa).cross(pc - pa), (pc - pb).cross(pd - pb));

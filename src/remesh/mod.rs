@@ -27,6 +27,7 @@ pub mod halfedge;
 mod isotropic;
 pub mod network;
 pub mod project;
+mod repair;
 pub mod smooth;
 
 pub use isotropic::triangle_quality;
@@ -88,7 +89,12 @@ pub struct Remeshed {
     pub mesh: InterfaceMesh,
     /// The smoothed extraction (the surface the remeshed vertices lie on).
     pub smoothed: InterfaceMesh,
+    /// Pairs of intersecting triangles the repair pass could not remove.
+    pub intersections_left: usize,
 }
+
+/// Rounds of the self-intersection repair pass.
+const REPAIR_ROUNDS: usize = 20;
 
 /// How far (in voxels) a remeshed triangle's centroid may lie from the
 /// smoothed reference: keeps chords from cutting across thin structures.
@@ -118,6 +124,7 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
         FIT_VOXELS * voxel,
     )?;
     r.run(params.iterations);
+    let intersections_left = r.repair_intersections(REPAIR_ROUNDS);
     let out = r.into_mesh(mesh);
     let smoothed = InterfaceMesh {
         positions: smoothed_pos,
@@ -126,5 +133,6 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
     Ok(Remeshed {
         mesh: out,
         smoothed,
+        intersections_left,
     })
 }
