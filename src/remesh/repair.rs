@@ -32,11 +32,15 @@ struct Part {
     moved: Option<(u32, DVec3)>,
 }
 
+/// Local id standing for the vertex a split creates (at the `moved` position).
+const NEW_VERTEX: u32 = NONE - 1;
+
 #[derive(Clone, Copy)]
 enum Op {
     Move(u32, u32, DVec3),
     Flip(u32, u32),
     Collapse(u32, u32),
+    Split(u32, u32, DVec3),
 }
 
 impl Remesher {
@@ -121,6 +125,9 @@ impl Remesher {
                 Op::Move(p, v, q) => self.patches[p as usize].mesh.pos[v as usize] = q,
                 Op::Flip(p, h) => self.patches[p as usize].mesh.flip(h),
                 Op::Collapse(p, h) => self.patches[p as usize].mesh.collapse(h),
+                Op::Split(p, h, q) => {
+                    self.patches[p as usize].mesh.split(h, q);
+                }
             }
             stale.extend(replaced_all);
             return true;
@@ -145,7 +152,13 @@ impl Remesher {
             _ => m.pos[v as usize],
         };
         for tri in &part.made {
-            let g = tri.map(|v| ids[v as usize]);
+            let g = tri.map(|v| {
+                if v == NEW_VERTEX {
+                    NEW_VERTEX
+                } else {
+                    ids[v as usize]
+                }
+            });
             let q = tri.map(local_pos);
             let (lo, hi) = (q[0].min(q[1]).min(q[2]), q[0].max(q[1]).max(q[2]));
             let mut hit = false;
@@ -275,6 +288,48 @@ fn candidates(m: &HalfedgeMesh, patch: u32, f: u32, fit: Fit, hi: f64) -> Vec<Ca
                     moved: None,
                 }],
                 op: Op::Collapse(patch, g),
+            });
+        }
+    }
+    // splits of interior edges, the new vertex on the reference: lets the
+    // patch follow its reference where an edge cuts across (typically an edge
+    // between two junction vertices that skips a bend of the curve)
+    for &h in &hs {
+        if m.is_boundary_edge(h) {
+            continue;
+        }
+        let (a, b) = (m.from(h), m.to(h));
+        let (c, d) = (m.to(m.next(h)), m.to(m.next(h ^ 1)));
+        let [pa, pb, pc, pd] = [a, b, c, d].map(|v| m.pos[v as usize]);
+        let q = fit.reference.project((pa + pb) * 0.5);
+        let made = [
+            [a, NEW_VERTEX, c],
+            [NEW_VERTEX, b, c],
+            [b, NEW_VERTEX, d],
+            [NEW_VERTEX, a, d],
+        ];
+        let (n1, n2) = ((pb - pa).cross(pc - pa), (pa - pb).cross(pd - pb));
+        let ok = made.iter().zip([n1, n1, n2, n2]).all(|(t, n)| {
+            let [x, y, z] = t.map(|v| {
+                if v == NEW_VERTEX {
+                    q
+                } else {
+                    m.pos[v as usize]
+                }
+            });
+            (y - x).cross(z - x).dot(n) > 0.0
+                && !crate::extract::is_degenerate(x, y, z)
+                && fit.ok(x, y, z)
+        });
+        if ok {
+            out.push(Candidate {
+                parts: vec![Part {
+                    patch,
+                    replaced: vec![m.face(h), m.face(h ^ 1)],
+                    made: made.to_vec(),
+                    moved: Some((NEW_VERTEX, q)),
+                }],
+                op: Op::Split(patch, h, q),
             });
         }
     }
