@@ -730,3 +730,21 @@ fn stress_bigger_noise() {
     }
     assert_eq!(fails, 0);
 }
+
+/// `docs/hyper_table.md` is the derived table (regenerate with
+/// `SEPTA_WRITE_TABLE=1 cargo test --test hyper table_document`).
+#[test]
+fn table_document_is_current() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/hyper_table.md");
+    let text = septa::hyper::table::table_markdown();
+    if std::env::var_os("SEPTA_WRITE_TABLE").is_some() {
+        std::fs::write(&path, &text).unwrap();
+    }
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), text);
+    assert_eq!(
+        text.lines()
+            .filter(|l| l.starts_with("| ") && l.contains(" → "))
+            .count(),
+        32
+    );
+}

@@ -19,7 +19,8 @@
 //! The paper's Table I (192 vector paths: 32 boundary-cube centres × 2
 //! orientations × 3 paths over 24 connectivity points) is missing from its
 //! text; [`table`] derives it from the construction (the hypersurface is the
-//! dual of the boundary 3-complex) and the tests verify it. Cell numbering is
+//! dual of the boundary 3-complex) and the tests verify it;
+//! [`table::table_markdown`] prints it (`docs/hyper_table.md`). Cell numbering is
 //! in [`cell`]; in the paper's style of global point ids, toxels are 0–15,
 //! cube centres 16–47 and connectivity points 48–71 (`16 + cube`,
 //! `48 + square`). The paper's examples, as counted by this implementation
