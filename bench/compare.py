@@ -5,6 +5,7 @@ Run from anywhere (Python >= 3.10; it was written for 3.11):
 
     python3 bench/compare.py                      # 256^3 and 512^3, clean and --noise 0.01
     python3 bench/compare.py --sizes 256 --repeats 1
+    python3 bench/compare.py --iso                # septa iso vs scikit-image and VTK flying edges
 
 On its first run it creates bench/.venv and pip-installs bench/requirements.txt
 (vtk, numpy, nibabel) into it, then re-runs itself with that interpreter. It
@@ -356,12 +357,24 @@ def main() -> None:
                     help="use this septa binary instead of building the work tree "
                     "(e.g. one built from a clean `git archive HEAD`)")
     ap.add_argument("--septa-rev", help="what to report as the binary's git revision (with --septa-bin)")
+    ap.add_argument("--iso", action="store_true",
+                    help="instead: VESTA iso-surfaces, `septa iso` vs scikit-image marching_cubes and "
+                    "vtkFlyingEdges3D on the CT-like volume of benches/iso.rs (see compare_iso.py)")
+    ap.add_argument("--iso-size", type=int, default=256, help="--iso: voxels per axis (default 256)")
+    ap.add_argument("--iso-out", type=Path, help="--iso: also write the markdown tables here")
     args = ap.parse_args()
     if not args.no_venv and not in_venv():
         bootstrap()
 
     import nibabel as nib
     import numpy as np
+
+    if args.iso:
+        sys.path.insert(0, str(HERE))
+        import compare_iso
+
+        compare_iso.main(args, np, setup_vtk)
+        return
 
     exe = args.septa_bin.resolve() if args.septa_bin else build_septa()
     vtk, smp = setup_vtk(args.threads)

@@ -19,6 +19,7 @@
 pub mod config;
 pub mod error;
 pub mod extract;
+pub mod hyper;
 pub mod io;
 pub mod iso;
 pub mod mesh;

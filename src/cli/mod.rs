@@ -6,6 +6,7 @@
 mod check;
 mod contour;
 mod extract;
+mod hyper;
 mod info;
 mod inspect;
 mod iso;
@@ -69,6 +70,8 @@ enum Command {
     Iso(iso::IsoArgs),
     /// DICONEX contours of a 2-D image or a volume slice: iso-contours, or label-pair polylines.
     Contour(contour::ContourArgs),
+    /// STEVE iso-hypersurface of a 4-D volume (or of 3-D frames), and closed surfaces at any time.
+    Hyper(hyper::HyperArgs),
 }
 
 /// Reading a volume: the file, an optional config, and the description of raw files.
@@ -177,6 +180,7 @@ pub fn main() -> ExitCode {
         Command::Extract(a) => extract::run(a, &ui),
         Command::Check(a) => check::run(a, &ui),
         Command::Iso(a) => iso::run(a, &ui),
+        Command::Hyper(a) => hyper::run(a, &ui),
         Command::Contour(a) => contour::run(a, &ui),
     };
     match result {

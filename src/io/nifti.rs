@@ -602,6 +602,94 @@ pub fn write_labels(path: &Path, volume: &LabelVolume) -> Result<()> {
     atomic_write(path, &bytes)
 }
 
+/// Writes any [`Image`] of 1 to 4 axes (e.g. a 4-D time series) as NIfTI-1
+/// (`.nii`, or `.nii.gz` when the name ends in `.gz`): its own sample type,
+/// sform (and qform when the direction is a rotation) from its geometry, and
+/// `pixdim[4]` = its time step (units mm and s). The reader gives the image
+/// back unchanged.
+pub fn write_image(path: &Path, image: &Image) -> Result<()> {
+    match split_name(path) {
+        Some((_, ext, _)) if ext == "nii" => {}
+        _ => return Err(Error::input(path, "images are written as .nii or .nii.gz")),
+    }
+    let dims = &image.dims;
+    if dims.is_empty() || dims.len() > 4 {
+        return Err(Error::input(
+            path,
+            format!("{} axes: septa writes images of 1 to 4 axes", dims.len()),
+        ));
+    }
+    if let Some(&n) = dims.iter().find(|&&n| n == 0 || n > i16::MAX as usize) {
+        return Err(Error::input(
+            path,
+            format!("an extent of {n} does not fit a NIfTI-1 header (1 to 32767)"),
+        ));
+    }
+    let count: usize = dims.iter().product();
+    if count != image.samples.len() {
+        return Err(Error::input(
+            path,
+            format!(
+                "{} samples for the extents {dims:?}",
+                image.samples.len()
+            ),
+        ));
+    }
+    if let Some(dt) = image.time_step {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(Error::input(path, format!("time step {dt} is not positive")));
+        }
+    }
+    let dtype = image.samples.dtype();
+    let g = &image.geometry;
+    let spacing = g.spacing();
+    let ras = g.to_ras();
+    let qform = rotation_quaternion(&ras, spacing);
+    let mut p = Put(vec![0u8; NIFTI1_DATA_OFFSET]);
+    p.bytes(0, &348i32.to_le_bytes());
+    p.bytes(38, b"r");
+    let mut dim = [dims.len().max(3) as i16, 1, 1, 1, 1, 1, 1, 1];
+    for (i, &n) in dims.iter().enumerate() {
+        dim[i + 1] = n as i16;
+    }
+    for (i, &n) in dim.iter().enumerate() {
+        p.i16(40 + 2 * i, n);
+    }
+    p.i16(70, nifti_code(dtype));
+    p.i16(72, (dtype.size() * 8) as i16);
+    let qfac = qform.map_or(1.0, |q| q.qfac);
+    let dt = image.time_step.unwrap_or(1.0);
+    let pixdim = [qfac, spacing[0], spacing[1], spacing[2], dt, 1.0, 1.0, 1.0];
+    for (i, &v) in pixdim.iter().enumerate() {
+        p.f32(76 + 4 * i, v);
+    }
+    p.f32(108, NIFTI1_DATA_OFFSET as f64);
+    p.f32(112, 1.0);
+    // xyzt_units: mm, plus seconds when there is a time step
+    p.bytes(123, &[if image.time_step.is_some() { 2 | 8 } else { 2 }]);
+    p.bytes(148, b"septa image");
+    p.i16(252, if qform.is_some() { 1 } else { 0 });
+    p.i16(254, 1);
+    if let Some(q) = qform {
+        for (i, &v) in q.bcd.iter().enumerate() {
+            p.f32(256 + 4 * i, v);
+        }
+    }
+    for (r, row) in ras.iter().enumerate() {
+        p.f32(268 + 4 * r, row[3]);
+        for (c, &v) in row.iter().enumerate() {
+            p.f32(280 + 16 * r + 4 * c, v);
+        }
+    }
+    p.bytes(344, b"n+1\0");
+    let mut bytes = p.0;
+    bytes.extend_from_slice(&image.samples.to_le_bytes());
+    if split_name(path).is_some_and(|(_, _, gz)| gz) {
+        bytes = gzip(&bytes).map_err(|e| Error::io(path, e))?;
+    }
+    atomic_write(path, &bytes)
+}
+
 /// gzip-compresses `bytes` (level 6).
 pub(crate) fn gzip(bytes: &[u8]) -> std::io::Result<Vec<u8>> {
     use std::io::Write;
