@@ -686,3 +686,47 @@ fn bad_input_gets_clear_errors() {
     assert!(h.slice(f64::NAN).is_err());
     assert_eq!(h.slice(0.5).unwrap().mesh.triangle_count(), 0);
 }
+
+/// Larger noise volumes, all options, slices at frame, half-frame and random
+/// times (about 3 minutes; run with `--ignored`).
+#[test]
+#[ignore]
+fn stress_bigger_noise() {
+    let mut fails = 0;
+    for seed in 0..60u64 {
+        let d = [9, 8, 7, 6];
+        let levels = 2 + seed % 3;
+        let v = random_values(d, seed * 7919, levels);
+        let iso = (levels / 2) as f64;
+        for displace in [false, true] {
+            for mode in MODES {
+                let o = opts(iso, mode, displace);
+                let h = run(&v, d, &o);
+                let r = check_closed_manifold(h.points.len(), &h.tets);
+                if !r.passed() {
+                    eprintln!("manifold {seed} {o:?} {r:?}");
+                    fails += 1;
+                }
+                let mut rng = Rng(seed);
+                for k in 0..12 {
+                    let t = if k < 4 {
+                        k as f64 * 0.5 + 0.5
+                    } else {
+                        rng.below(6000) as f64 / 1000.0 - 0.5
+                    };
+                    let s = h.slice(t).unwrap();
+                    let rep = validate(&s.mesh, &Options::default());
+                    if !rep.passed() {
+                        eprintln!(
+                            "slice {seed} {o:?} t {t} sep {}: {}",
+                            s.separated,
+                            rep.summary()
+                        );
+                        fails += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert_eq!(fails, 0);
+}

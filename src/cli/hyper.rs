@@ -64,7 +64,7 @@ pub struct HyperArgs {
     #[arg(long, value_name = "START:STOP:STEP", value_parser = parse_times, allow_hyphen_values = true)]
     pub times: Option<TimeRange>,
     /// Time per frame (default: the file's, e.g. NIfTI pixdim[4], else 1).
-    #[arg(long, value_name = "DT")]
+    #[arg(long, value_name = "DT", allow_negative_numbers = true)]
     pub time_step: Option<f64>,
     /// Do not write hypersurface.ply (only the slices and the summary).
     #[arg(long)]

@@ -53,7 +53,9 @@ impl ManifoldReport {
     }
 }
 
-/// Runs the checks on `tets` over `n_vertices` vertices.
+/// Runs the checks on `tets` over `n_vertices` vertices, vertex by vertex in
+/// parallel: the tetrahedra around each vertex (its star) give its link; a
+/// triangle is checked at its smallest vertex, an edge at both ends.
 pub fn check_closed_manifold(n_vertices: usize, tets: &[[u32; 4]]) -> ManifoldReport {
     let mut r = ManifoldReport {
         tetrahedra: tets.len(),
@@ -69,106 +71,133 @@ pub fn check_closed_manifold(n_vertices: usize, tets: &[[u32; 4]]) -> ManifoldRe
     if r.bad_tetrahedra > 0 {
         return r;
     }
-    // 2. triangles with orientation signs
-    let mut faces: Vec<([u32; 3], i8)> = tets
-        .par_iter()
-        .flat_map_iter(|t| {
-            let f = [
-                [t[1], t[2], t[3]],
-                [t[0], t[3], t[2]],
-                [t[0], t[1], t[3]],
-                [t[0], t[2], t[1]],
-            ];
-            f.into_iter().map(canonical)
-        })
-        .collect();
-    faces.par_sort_unstable();
-    let (mut distinct, mut unpaired, mut misoriented) = (0, 0, 0);
-    for run in faces.chunk_by(|a, b| a.0 == b.0) {
-        distinct += 1;
-        if run.len() != 2 {
-            unpaired += 1;
-        } else if run[0].1 == run[1].1 {
-            misoriented += 1;
-        }
-    }
-    r.triangles = distinct;
-    r.unpaired_triangles = unpaired;
-    r.misoriented_triangles = misoriented;
-    // 3. edge links: the opposite edges of the tetrahedra around an edge form one cycle
-    let mut edges: Vec<([u32; 2], [u32; 2])> = tets
-        .par_iter()
-        .flat_map_iter(|t| {
-            const PAIRS: [(usize, usize, usize, usize); 6] = [
-                (0, 1, 2, 3),
-                (0, 2, 1, 3),
-                (0, 3, 1, 2),
-                (1, 2, 0, 3),
-                (1, 3, 0, 2),
-                (2, 3, 0, 1),
-            ];
-            PAIRS.into_iter().map(move |(a, b, c, d)| {
-                let e = [t[a].min(t[b]), t[a].max(t[b])];
-                (e, [t[c], t[d]])
-            })
-        })
-        .collect();
-    edges.par_sort_unstable();
-    r.bad_edge_links = edges
-        .par_chunk_by(|a, b| a.0 == b.0)
-        .filter(|run| !is_single_cycle(run.iter().map(|x| x.1)))
-        .count() as u64;
-    // 4. vertex links
-    let mut used = vec![false; n_vertices];
+    // stars: tetrahedra around each vertex (compressed rows)
+    let mut start = vec![0u32; n_vertices + 1];
     for t in tets {
         for &v in t {
-            used[v as usize] = true;
+            start[v as usize + 1] += 1;
         }
     }
-    r.unused_vertices = used.iter().filter(|&&u| !u).count() as u64;
-    let mut star: Vec<(u32, [u32; 3])> = tets
-        .par_iter()
-        .flat_map_iter(|t| {
-            (0..4).map(move |i| {
-                let mut o = [0u32; 3];
-                let mut k = 0;
-                for (j, &v) in t.iter().enumerate() {
-                    if j != i {
-                        o[k] = v;
-                        k += 1;
-                    }
-                }
-                (t[i], o)
-            })
+    for v in 0..n_vertices {
+        start[v + 1] += start[v];
+    }
+    let mut fill = start.clone();
+    let mut star = vec![0u32; 4 * tets.len()];
+    for (i, t) in tets.iter().enumerate() {
+        for &v in t {
+            star[fill[v as usize] as usize] = i as u32;
+            fill[v as usize] += 1;
+        }
+    }
+    let results: Vec<VertexFindings> = (0..n_vertices)
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(|v| {
+            let s = &star[start[v] as usize..start[v + 1] as usize];
+            vertex_findings(v as u32, s, tets)
         })
         .collect();
-    star.par_sort_unstable();
-    let (bad, cones) = star
-        .par_chunk_by(|a, b| a.0 == b.0)
-        .map(|run| match link_genus(run.iter().map(|x| x.1)) {
-            Some(0) => (0u64, 0u64),
-            Some(_) => (0, 1),
-            None => (1, 0),
-        })
-        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
-    r.bad_vertex_links = bad;
-    r.cone_points = cones;
+    for f in results {
+        r.triangles += f.triangles;
+        r.unpaired_triangles += f.unpaired;
+        r.misoriented_triangles += f.misoriented;
+        r.bad_edge_links += f.bad_edges;
+        match f.genus {
+            None if f.unused => r.unused_vertices += 1,
+            None => r.bad_vertex_links += 1,
+            Some(0) => {}
+            Some(_) => r.cone_points += 1,
+        }
+    }
+    // an edge is checked from both ends
+    r.bad_edge_links = r.bad_edge_links.div_ceil(2);
     r
 }
 
-/// Sorted triangle and the orientation sign of the given order relative to it.
-fn canonical(f: [u32; 3]) -> ([u32; 3], i8) {
-    let mut s = f;
-    let mut sign = 1i8;
-    for i in 0..3 {
-        for j in 0..2 - i {
-            if s[j] > s[j + 1] {
-                s.swap(j, j + 1);
-                sign = -sign;
-            }
+/// What the star of one vertex shows.
+#[derive(Default)]
+struct VertexFindings {
+    /// Triangles whose smallest vertex this is.
+    triangles: usize,
+    unpaired: u64,
+    misoriented: u64,
+    /// Edges at this vertex whose link is not one cycle.
+    bad_edges: u64,
+    /// Genus of the link if it is a closed connected surface.
+    genus: Option<u32>,
+    unused: bool,
+}
+
+/// Checks the link of vertex `v` with star `s` (tetrahedron ids).
+fn vertex_findings(v: u32, s: &[u32], tets: &[[u32; 4]]) -> VertexFindings {
+    let mut f = VertexFindings::default();
+    if s.is_empty() {
+        f.unused = true;
+        return f;
+    }
+    // link triangles, oriented as faces of the tetrahedra: the face opposite
+    // v in [v0 v1 v2 v3] with v = vi, moved to the front (sign of the move)
+    let mut link: Vec<[u32; 3]> = Vec::with_capacity(s.len());
+    for &ti in s {
+        let t = tets[ti as usize];
+        let i = t.iter().position(|&x| x == v).expect("vertex in its star");
+        // [v0 v1 v2 v3] with vi first: an even permutation keeps the order of the rest
+        let rest: [u32; 3] = match i {
+            0 => [t[1], t[2], t[3]],
+            1 => [t[0], t[3], t[2]],
+            2 => [t[0], t[1], t[3]],
+            _ => [t[0], t[2], t[1]],
+        };
+        link.push(rest);
+    }
+    // link edges (a, b) with the triangle's direction: a closed oriented
+    // surface has every edge once in each direction
+    let mut edges: Vec<(u32, u32, bool)> = Vec::with_capacity(3 * link.len());
+    for t in &link {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            edges.push((a.min(b), a.max(b), a < b));
         }
     }
-    (s, sign)
+    edges.sort_unstable();
+    let mut closed = true;
+    for run in edges.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+        // the triangle (v, a, b): count it at its smallest vertex
+        let counted = v < run[0].0;
+        if counted {
+            f.triangles += 1;
+        }
+        if run.len() != 2 {
+            closed = false;
+            if counted {
+                f.unpaired += 1;
+            }
+        } else if run[0].2 == run[1].2 && counted {
+            f.misoriented += 1;
+        }
+    }
+    // every link vertex: its rim in the link is one cycle (the edge's link)
+    let mut rims: Vec<(u32, [u32; 2])> = Vec::with_capacity(3 * link.len());
+    for t in &link {
+        for k in 0..3 {
+            rims.push((t[k], [t[(k + 1) % 3], t[(k + 2) % 3]]));
+        }
+    }
+    rims.sort_unstable_by_key(|x| x.0);
+    let mut verts: Vec<u32> = Vec::new();
+    for run in rims.chunk_by(|x, y| x.0 == y.0) {
+        verts.push(run[0].0);
+        if !is_single_cycle(run.iter().map(|x| x.1)) {
+            f.bad_edges += 1;
+            closed = false;
+        }
+    }
+    f.genus = if closed {
+        link_genus(&verts, edges.len() / 2, &link)
+    } else {
+        None
+    };
+    f
 }
 
 /// Whether the edges form one cycle (every vertex in two edges, connected).
@@ -205,24 +234,10 @@ fn is_single_cycle(edges: impl Iterator<Item = [u32; 2]>) -> bool {
     steps == e.len()
 }
 
-/// Genus of a closed connected surface given by its triangles, or `None` if
-/// the triangles do not form one (an edge not in exactly two triangles, not
-/// connected, or odd Euler characteristic).
-fn link_genus(tris: impl Iterator<Item = [u32; 3]>) -> Option<u32> {
-    let tris: Vec<[u32; 3]> = tris.collect();
-    let mut verts: Vec<u32> = tris.iter().flatten().copied().collect();
-    verts.sort_unstable();
-    verts.dedup();
-    let mut edges: Vec<[u32; 2]> = tris
-        .iter()
-        .flat_map(|t| [(0, 1), (1, 2), (0, 2)].map(|(i, j)| [t[i].min(t[j]), t[i].max(t[j])]))
-        .collect();
-    edges.sort_unstable();
-    if edges.chunk_by(|a, b| a == b).any(|r| r.len() != 2) {
-        return None;
-    }
-    let e = edges.len() / 2;
-    // connectivity (union-find over local vertex ids)
+/// Genus of a closed surface (every edge in two triangles, checked by the
+/// caller) with sorted vertices `verts`, `e` edges and triangles `tris`, or
+/// `None` if it is not connected or its Euler characteristic is odd or > 2.
+fn link_genus(verts: &[u32], e: usize, tris: &[[u32; 3]]) -> Option<u32> {
     let local = |v: u32| verts.binary_search(&v).expect("vertex listed");
     let mut parent: Vec<usize> = (0..verts.len()).collect();
     fn find(p: &mut [usize], mut i: usize) -> usize {
@@ -232,7 +247,7 @@ fn link_genus(tris: impl Iterator<Item = [u32; 3]>) -> Option<u32> {
         }
         i
     }
-    for t in &tris {
+    for t in tris {
         let a = find(&mut parent, local(t[0]));
         for &v in &t[1..] {
             let b = find(&mut parent, local(v));

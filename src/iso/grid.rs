@@ -152,11 +152,12 @@ fn active_word<T: Scalar>(values: &[T], grid: &Padded, start: usize, iso: f64) -
             let hi = (i + run).min(d.nx + 1);
             if lo < hi {
                 let row = d.nx * ((j - 1) + d.ny * (k - 1));
+                // branch-free, so that the comparison vectorizes
+                let mut run_bits = 0u64;
                 for (x, v) in values[row + lo - 1..row + hi - 1].iter().enumerate() {
-                    if v.to_f64() >= iso {
-                        word |= 1 << (t + lo - i + x);
-                    }
+                    run_bits |= ((v.to_f64() >= iso) as u64) << x;
                 }
+                word |= run_bits << (t + lo - i);
             }
         }
         t += run;
