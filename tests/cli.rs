@@ -1242,11 +1242,11 @@ fn extract_remeshes_by_default() {
     // config keys do the same as the flags; the flag wins over the config
     let cfg2 = dir.path().join("heart.toml");
     let base = std::fs::read_to_string(heart_config()).unwrap();
-    assert!(base.contains("\ntarget_edge = 2.0\n"));
+    assert!(base.contains("\ntarget_edge = 3.0\n"));
     std::fs::write(
         &cfg2,
         base.replace(
-            "\ntarget_edge = 2.0\n",
+            "\ntarget_edge = 3.0\n",
             "\ntarget_edge = 4.0\niterations = 3\n",
         ),
     )

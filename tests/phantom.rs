@@ -350,7 +350,7 @@ fn shipped_config_names_the_phantom_labels() {
     let config = Config::from_file(&path).unwrap();
     let names: Vec<(i64, &str)> = config.names.iter().map(|(v, n)| (*v, n.as_str())).collect();
     assert_eq!(names, LABELS.to_vec());
-    assert_eq!(config.remesh.target_edge, Some(2.0));
+    assert_eq!(config.remesh.target_edge, Some(3.0));
     let volume = make(32, 0.0, 1);
     let (resolved_volume, resolved) = config.resolve(volume.clone()).unwrap();
     assert_eq!(resolved_volume, volume, "the config adds no labels");
