@@ -97,35 +97,53 @@ impl<T: Scalar> March<'_, T> {
             .collect()
     }
 
-    /// All cells whose lowest toxel has coordinates (·, ·, z, t).
+    /// All cells whose lowest toxel has coordinates (·, ·, z, t). Cells are
+    /// visited 64 at a time along x: the OR and AND of the 16 activity
+    /// windows skip cells whose toxels are all active or all inactive.
     fn task(&self, z: usize, t: usize) -> Part {
         let g: &Grid = &self.act.grid;
         let off = g.cell_offsets();
+        let nx = g.p[0] - 1;
         let mut part = Part::default();
         for y in 0..g.p[1] - 1 {
             let row = y * g.stride[1] + z * g.stride[2] + t * g.stride[3];
-            for x in 0..g.p[0] - 1 {
-                let q = row + x;
-                let mut mask = 0u16;
-                for (o, &d) in off.iter().enumerate() {
-                    mask |= (self.act.get(q + d) as u16) << o;
+            for x0 in (0..nx).step_by(64) {
+                let (mut any, mut all) = (0u64, !0u64);
+                for &d in &off {
+                    let w = self.act.window((row + x0 + d) as isize);
+                    any |= w;
+                    all &= w;
                 }
-                if mask == 0 || mask == u16::MAX {
-                    continue;
+                let mut todo = any & !all;
+                if nx - x0 < 64 {
+                    todo &= (1u64 << (nx - x0)) - 1;
                 }
-                let amb = ambiguous_squares(mask);
-                let connect = match self.mode {
-                    Mode::Disconnect => 0,
-                    Mode::Connect => CONNECT_ALL,
-                    Mode::Mixed => self.mixed_connect(q, amb, &off),
-                };
-                part.counts.cells += 1;
-                part.counts.ambiguities += amb.count_ones() as u64;
-                let shape = cell_shape(mask, connect);
-                self.emit(&mut part, &shape, mask, q, &off);
+                while todo != 0 {
+                    let b = todo.trailing_zeros() as usize;
+                    todo &= todo - 1;
+                    self.cell(&mut part, row + x0 + b, &off);
+                }
             }
         }
         part
+    }
+
+    /// One cell with at least one boundary cube.
+    fn cell(&self, part: &mut Part, q: usize, off: &[usize; 16]) {
+        let mut mask = 0u16;
+        for (o, &d) in off.iter().enumerate() {
+            mask |= (self.act.get(q + d) as u16) << o;
+        }
+        let amb = ambiguous_squares(mask);
+        let connect = match self.mode {
+            Mode::Disconnect => 0,
+            Mode::Connect => CONNECT_ALL,
+            Mode::Mixed => self.mixed_connect(q, amb, off),
+        };
+        part.counts.cells += 1;
+        part.counts.ambiguities += amb.count_ones() as u64;
+        let shape = cell_shape(mask, connect);
+        self.emit(part, &shape, mask, q, off);
     }
 
     /// Mixed mode: join at a point of ambiguity iff the mean of its four

@@ -120,7 +120,7 @@ impl Activity {
 
     /// 64 activity bits from padded toxel `q` on (zeros outside the grid).
     #[inline]
-    fn window(&self, q: isize) -> u64 {
+    pub fn window(&self, q: isize) -> u64 {
         let word = |w: isize| -> u64 {
             if w < 0 || w as usize >= self.bits.len() {
                 0

@@ -244,7 +244,7 @@ impl Hypersurface {
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
                 (lo.min(p[3]), hi.max(p[3]))
             });
-        (lo <= hi).then(|| (lo * self.time_step, hi * self.time_step))
+        (lo <= hi).then_some((lo * self.time_step, hi * self.time_step))
     }
 }
 

@@ -133,10 +133,13 @@ pub fn vector_paths() -> &'static [VectorPath] {
     })
 }
 
+/// `(from, to)` squares by `[cube][active_hi][half-edge]`.
+type PathLookup = [[[(u8, u8); HALF_EDGES]; 2]; CUBES];
+
 /// Paths indexed by `[cube][active_hi][half-edge]` → `(from, to)` squares
 /// (`u8::MAX` where the cube does not contain the half-edge).
-fn path_lookup() -> &'static [[[(u8, u8); HALF_EDGES]; 2]; CUBES] {
-    static T: OnceLock<[[[(u8, u8); HALF_EDGES]; 2]; CUBES]> = OnceLock::new();
+fn path_lookup() -> &'static PathLookup {
+    static T: OnceLock<PathLookup> = OnceLock::new();
     T.get_or_init(|| {
         let mut t = [[[(u8::MAX, u8::MAX); HALF_EDGES]; 2]; CUBES];
         for p in vector_paths() {
@@ -361,54 +364,6 @@ fn next_cube(
 /// Connect bits for the global modes: none (disconnect) or all (connect).
 pub const CONNECT_ALL: u32 = (1 << SQUARES) - 1;
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::hyper::cell::square_half_edges;
-
-    #[test]
-    fn table_has_192_paths_each_square_pair_once_per_orientation() {
-        let t = vector_paths();
-        assert_eq!(t.len(), 192);
-        for p in t {
-            assert_ne!(p.from, p.to);
-            // the path's squares are both in the cube and contain its half-edge
-            for s in [p.from, p.to] {
-                assert!(square_cubes(s as usize).contains(&(p.cube as usize)));
-                assert!(square_half_edges(s as usize).contains(&(p.half_edge as usize)));
-            }
-        }
-        // the two orientations of a cube run every path the other way
-        for c in 0..CUBES {
-            for h in cube_half_edges(c) {
-                let (a, b) = derive_path(c, false, h).unwrap();
-                assert_eq!(derive_path(c, true, h), Some((b, a)));
-            }
-        }
-    }
-
-    #[test]
-    fn axis_det_is_the_determinant() {
-        assert_eq!(axis_det([(0, 1), (1, 1), (2, 1), (3, 1)]), 1);
-        assert_eq!(axis_det([(1, 1), (0, 1), (2, 1), (3, 1)]), -1);
-        assert_eq!(axis_det([(3, 1), (0, 1), (1, 1), (2, 1)]), -1);
-        assert_eq!(axis_det([(3, -1), (0, 1), (1, 1), (2, 1)]), 1);
-        assert_eq!(axis_det([(0, 1), (0, 1), (2, 1), (3, 1)]), 0);
-    }
-
-    #[test]
-    fn every_boundary_cube_is_in_three_cycles() {
-        for mask in (0..=u16::MAX).step_by(7) {
-            for connect in [0, CONNECT_ALL] {
-                let s = cell_shape(mask, connect);
-                let total: usize = (0..s.cycles as usize).map(|i| s.cycle(i).len()).sum();
-                let boundary = (0..CUBES).filter(|&c| is_boundary(mask, c)).count();
-                assert_eq!(total, 3 * boundary, "mask {mask:016b}");
-            }
-        }
-    }
-}
-
 /// The vector-path table as Markdown, in the style of the paper's Table I:
 /// one row per boundary-cube centre, its three paths for each orientation,
 /// each path `from → centre → to` in global point ids (toxels 0–15, cube
@@ -494,4 +449,52 @@ pub fn table_markdown() -> String {
         );
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::hyper::cell::square_half_edges;
+
+    #[test]
+    fn table_has_192_paths_each_square_pair_once_per_orientation() {
+        let t = vector_paths();
+        assert_eq!(t.len(), 192);
+        for p in t {
+            assert_ne!(p.from, p.to);
+            // the path's squares are both in the cube and contain its half-edge
+            for s in [p.from, p.to] {
+                assert!(square_cubes(s as usize).contains(&(p.cube as usize)));
+                assert!(square_half_edges(s as usize).contains(&(p.half_edge as usize)));
+            }
+        }
+        // the two orientations of a cube run every path the other way
+        for c in 0..CUBES {
+            for h in cube_half_edges(c) {
+                let (a, b) = derive_path(c, false, h).unwrap();
+                assert_eq!(derive_path(c, true, h), Some((b, a)));
+            }
+        }
+    }
+
+    #[test]
+    fn axis_det_is_the_determinant() {
+        assert_eq!(axis_det([(0, 1), (1, 1), (2, 1), (3, 1)]), 1);
+        assert_eq!(axis_det([(1, 1), (0, 1), (2, 1), (3, 1)]), -1);
+        assert_eq!(axis_det([(3, 1), (0, 1), (1, 1), (2, 1)]), -1);
+        assert_eq!(axis_det([(3, -1), (0, 1), (1, 1), (2, 1)]), 1);
+        assert_eq!(axis_det([(0, 1), (0, 1), (2, 1), (3, 1)]), 0);
+    }
+
+    #[test]
+    fn every_boundary_cube_is_in_three_cycles() {
+        for mask in (0..=u16::MAX).step_by(7) {
+            for connect in [0, CONNECT_ALL] {
+                let s = cell_shape(mask, connect);
+                let total: usize = (0..s.cycles as usize).map(|i| s.cycle(i).len()).sum();
+                let boundary = (0..CUBES).filter(|&c| is_boundary(mask, c)).count();
+                assert_eq!(total, 3 * boundary, "mask {mask:016b}");
+            }
+        }
+    }
 }
