@@ -612,8 +612,14 @@ fn hypersurface_ply_round_trip() {
     let o = opts(50.0, Mode::Mixed, true);
     let h = hypersurface_image(&img, None, &o).unwrap();
     let path = dir.path().join("h.ply");
-    septa::hyper::ply::write_hypersurface_ply(&path, &h, &o).unwrap();
+    let Samples::F32(v) = &img.samples else {
+        panic!("float samples")
+    };
+    let values = h.field_values(v, [8, 8, 8, 3]).unwrap();
+    septa::hyper::ply::write_hypersurface_ply(&path, &h, &o, Some(&values)).unwrap();
     let back = septa::hyper::ply::read_hypersurface_ply(&path).unwrap();
+    let bv = back.values.clone().unwrap();
+    assert!(bv.iter().zip(&values).all(|(a, b)| *a == *b as f32 as f64));
     assert_eq!(back.tets, h.physical_tets());
     let p = h.physical_points();
     assert_eq!(back.points.len(), p.len());
@@ -629,6 +635,41 @@ fn hypersurface_ply_round_trip() {
     assert!(back.comments.iter().any(|c| c.contains("STEVE")));
     let r = check_closed_manifold(back.points.len(), &back.tets);
     assert!(r.passed());
+}
+
+/// A field interpolated onto the hypersurface: the iso field itself gives the
+/// iso value at (unclamped) support points; a field linear in space is
+/// reproduced exactly at every vertex (all the averages are of points).
+#[test]
+fn field_values_interpolate_along_range_vectors() {
+    let img = septa::hyper::fireball::fireball(12, 4, 1.0, 1.0);
+    let o = opts(50.0, Mode::Mixed, true);
+    let h = hypersurface_image(&img, None, &o).unwrap();
+    let d = [12, 12, 12, 4];
+    let Samples::F32(v) = &img.samples else {
+        panic!("float samples")
+    };
+    let own = h.field_values(v, d).unwrap();
+    // support points between two toxels of the volume (not the lids before
+    // the first and after the last frame, which keep the inside toxel's value)
+    let inner: Vec<f64> = (0..h.stats.support_points)
+        .filter(|&i| h.points[i][3] > -0.5 && h.points[i][3] < 3.5)
+        .map(|i| own[i])
+        .collect();
+    let near = inner.iter().filter(|x| (*x - 50.0).abs() < 1e-6).count();
+    assert!(near * 100 >= inner.len() * 95, "{near} of {}", inner.len());
+    let linear: Vec<f64> = (0..d.iter().product::<usize>())
+        .map(|i| {
+            let (x, y, z) = (i % 12, (i / 12) % 12, (i / 144) % 12);
+            x as f64 + 2.0 * y as f64 - 3.0 * z as f64
+        })
+        .collect();
+    let lv = h.field_values(&linear, d).unwrap();
+    for (p, val) in h.points.iter().zip(&lv) {
+        let expect = p[0] + 2.0 * p[1] - 3.0 * p[2];
+        assert!((val - expect).abs() < 1e-9, "{p:?}: {val} vs {expect}");
+    }
+    assert!(h.field_values(&linear[1..], d).is_err());
 }
 
 #[test]

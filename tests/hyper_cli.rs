@@ -67,6 +67,8 @@ fn fireball_splits_in_two() {
         "0:3:0.5".as_ref(),
         "--at-time".as_ref(),
         "1.25".as_ref(),
+        "--field".as_ref(),
+        vol.as_os_str(),
         "-o".as_ref(),
         out.as_os_str(),
     ]);
@@ -114,6 +116,19 @@ fn fireball_splits_in_two() {
         s["hypersurface"]["tetrahedra"].as_u64().unwrap()
     );
     assert!(check_closed_manifold(h.points.len(), &h.tets).passed());
+    // --field: the iso field itself is ≈ iso at the support points
+    let values = h.values.as_ref().expect("value property");
+    // (support points between frames 0 and 6: 0 s < t < 3 s)
+    let support: Vec<f64> = (0..values.len())
+        .filter(|&i| h.kinds[i] == 0 && h.points[i][3] > 0.0 && h.points[i][3] < 3.0)
+        .map(|i| values[i])
+        .collect();
+    let near = support.iter().filter(|v| (**v - 50.0).abs() < 1e-3).count();
+    assert!(
+        near * 100 >= support.len() * 95,
+        "{near} of {}",
+        support.len()
+    );
     let tmax = h.points.iter().map(|p| p[3]).fold(f64::MIN, f64::max);
     assert!(tmax > 2.5 && tmax <= 3.25, "{tmax}");
 
@@ -240,6 +255,12 @@ fn bad_input_gets_clear_errors() {
             "--frames",
         ),
         (vec!["hyper", "--iso", "1", "-o", o], "VOLUME"),
+        (
+            vec![
+                "hyper", "--frames", v3, v3, "--iso", "1", "--field", v3, "-o", o,
+            ],
+            "same grid and frames",
+        ),
         (
             vec!["hyper", "missing.nii", "--iso", "1", "-o", o],
             "missing.nii",

@@ -66,6 +66,10 @@ pub struct HyperArgs {
     /// Time per frame (default: the file's, e.g. NIfTI pixdim[4], else 1).
     #[arg(long, value_name = "DT", allow_negative_numbers = true)]
     pub time_step: Option<f64>,
+    /// Another 4-D field on the same grid (e.g. density next to temperature),
+    /// interpolated onto the hypersurface's vertices: vertex property `value`.
+    #[arg(long, value_name = "FIELD4D")]
+    pub field: Option<PathBuf>,
     /// Do not write hypersurface.ply (only the slices and the summary).
     #[arg(long)]
     pub no_hypersurface: bool,
@@ -231,6 +235,10 @@ pub fn run(args: &HyperArgs, ui: &Ui) -> Result<ExitCode> {
             )?
         }
     };
+    let values = match &args.field {
+        Some(f) => Some(field_values(f, &h, &input)?),
+        None => None,
+    };
     let t_extract = stage.done();
 
     let stage = ui.stage("checking the hypersurface");
@@ -260,7 +268,15 @@ pub fn run(args: &HyperArgs, ui: &Ui) -> Result<ExitCode> {
         write: Duration::ZERO,
     };
     let summary = summary_json(args, &input, &opts, &h, &manifold, &slices, &timings_so_far);
-    write_outdir(&args.output, args, &h, &opts, &slices, &summary)?;
+    write_outdir(
+        &args.output,
+        args,
+        &h,
+        &opts,
+        values.as_deref(),
+        &slices,
+        &summary,
+    )?;
     let t_write = stage.done();
     let timings = Timings {
         write: t_write,
@@ -285,6 +301,24 @@ pub fn run(args: &HyperArgs, ui: &Ui) -> Result<ExitCode> {
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Reads `--field` and interpolates it onto the hypersurface.
+fn field_values(path: &Path, h: &Hypersurface, input: &Input) -> Result<Vec<f64>> {
+    let (dims, _, _) = input.describe();
+    let img = read_image(path, &ReadOptions::default())?;
+    if img.dims != dims {
+        return Err(Error::input(
+            path,
+            format!(
+                "has extents {:?} but the iso field has {dims:?}: --field needs the same grid and frames",
+                img.dims
+            ),
+        ));
+    }
+    let d = [dims[0], dims[1], dims[2], dims[3]];
+    h.field_values(&img.to_f64(), d)
+        .map_err(|e| Error::input(path, e.to_string()))
 }
 
 /// `slice_t<T>.ply` names, zero-padded to one width with the decimals the
@@ -333,6 +367,7 @@ fn write_outdir(
     args: &HyperArgs,
     h: &Hypersurface,
     opts: &HyperOptions,
+    values: Option<&[f64]>,
     slices: &[SliceOut],
     summary: &serde_json::Value,
 ) -> Result<()> {
@@ -351,7 +386,7 @@ fn write_outdir(
     let result = (|| -> Result<()> {
         std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
         if !args.no_hypersurface {
-            write_hypersurface_ply(&tmp.join("hypersurface.ply"), h, opts)?;
+            write_hypersurface_ply(&tmp.join("hypersurface.ply"), h, opts, values)?;
         }
         for s in slices {
             septa::io::mesh_ply::write_ply(&tmp.join(&s.file), &s.slice.mesh)?;
@@ -405,6 +440,7 @@ fn summary_json(
         },
         "hypersurface": {
             "file": if args.no_hypersurface { None } else { Some("hypersurface.ply") },
+            "field": args.field.as_ref().map(|f| show(f)),
             "active_toxels": st.active_toxels,
             "support_points": st.support_points,
             "face_centres": st.face_centres,

@@ -248,6 +248,107 @@ impl Hypersurface {
     }
 }
 
+impl Hypersurface {
+    /// Another field given on the same toxels (x fastest, then y, z, t; the
+    /// extents of the volume the hypersurface came from) interpolated onto
+    /// every vertex, as the paper's section IV.B suggests: at a support point
+    /// linearly between the two toxels of its range vector (the toxel inside
+    /// the volume where the other is outside), at a face centre the mean of its
+    /// cycle's support points, at a volume centre the mean over its faces (a
+    /// 3-cycle by the mean of its points) — the same averages that place them.
+    /// Face and volume centres are found through the tetrahedra around them.
+    pub fn field_values<T: Scalar>(&self, field: &[T], dims: [usize; 4]) -> Result<Vec<f64>> {
+        let n = dims.iter().try_fold(1usize, |a, &d| a.checked_mul(d));
+        if n != Some(field.len()) {
+            return Err(Error::invalid(format!(
+                "the field holds {} samples for extents {dims:?}",
+                field.len()
+            )));
+        }
+        let at = |c: [i64; 4]| -> Option<f64> {
+            let inside = (0..4).all(|a| c[a] >= 0 && (c[a] as usize) < dims[a]);
+            inside.then(|| {
+                let i = c[0] as usize
+                    + dims[0]
+                        * (c[1] as usize + dims[1] * (c[2] as usize + dims[2] * c[3] as usize));
+                field[i].to_f64()
+            })
+        };
+        let mut values = vec![f64::NAN; self.points.len()];
+        for (i, p) in self.points.iter().enumerate() {
+            if self.kinds[i] != PointKind::Support {
+                continue;
+            }
+            // the range-vector axis is the one coordinate that is not whole
+            let Some(a) = (0..4).find(|&a| p[a].fract() != 0.0) else {
+                continue;
+            };
+            let lo = p[a].floor();
+            let s = p[a] - lo;
+            let mut c: [i64; 4] = p.map(|x| x.round() as i64);
+            c[a] = lo as i64;
+            let vlo = at(c);
+            c[a] += 1;
+            let vhi = at(c);
+            values[i] = match (vlo, vhi) {
+                (Some(x), Some(y)) => x + (y - x) * s,
+                (Some(x), None) | (None, Some(x)) => x,
+                (None, None) => f64::NAN,
+            };
+        }
+        // tetrahedra around each face and volume centre
+        let mut around: Vec<Vec<u32>> = vec![Vec::new(); self.points.len()];
+        for (t, tet) in self.tets.iter().enumerate() {
+            for &v in tet {
+                if self.kinds[v as usize] != PointKind::Support {
+                    around[v as usize].push(t as u32);
+                }
+            }
+        }
+        let kind = |v: u32| self.kinds[v as usize];
+        for (v, ts) in around.iter().enumerate() {
+            if kind(v as u32) != PointKind::FaceCentre {
+                continue;
+            }
+            let mut members: Vec<u32> = ts
+                .iter()
+                .flat_map(|&t| self.tets[t as usize])
+                .filter(|&u| kind(u) == PointKind::Support)
+                .collect();
+            members.sort_unstable();
+            members.dedup();
+            values[v] =
+                members.iter().map(|&u| values[u as usize]).sum::<f64>() / members.len() as f64;
+        }
+        for (v, ts) in around.iter().enumerate() {
+            if kind(v as u32) != PointKind::VolumeCentre {
+                continue;
+            }
+            let mut faces: Vec<u32> = Vec::new();
+            let mut sum = 0.0;
+            let mut count = 0usize;
+            for &t in ts {
+                let tet = self.tets[t as usize];
+                match tet.iter().find(|&&u| kind(u) == PointKind::FaceCentre) {
+                    Some(&f) => faces.push(f),
+                    None => {
+                        let tri: Vec<u32> =
+                            tet.iter().copied().filter(|&u| u as usize != v).collect();
+                        sum += tri.iter().map(|&u| values[u as usize]).sum::<f64>() / 3.0;
+                        count += 1;
+                    }
+                }
+            }
+            faces.sort_unstable();
+            faces.dedup();
+            sum += faces.iter().map(|&f| values[f as usize]).sum::<f64>();
+            count += faces.len();
+            values[v] = sum / count as f64;
+        }
+        Ok(values)
+    }
+}
+
 /// The STEVE iso-hypersurface of a 4-D volume: samples x fastest, then y, z,
 /// t; `dims` = (x, y, z, frames); `geometry` maps voxel indices to LPS mm and
 /// `time_step` frames to physical time. Deterministic for any thread count.

@@ -20,6 +20,9 @@
 //! end_header
 //! ```
 //!
+//! With a field (`septa hyper --field`), vertices have one more property,
+//! `property float value`: the field interpolated onto the vertex.
+//!
 //! `kind` is 0 for a support point (a displaced boundary-cube centre), 1 for a
 //! face centre, 2 for a volume centre. Each tetra `(p0, p1, p2, p3)` is
 //! oriented so that `det[p1 − p0, p2 − p0, p3 − p0, w] > 0` for `w` pointing
@@ -42,6 +45,7 @@ use crate::io::{atomic_write_with, read_file};
 struct VertexOut {
     p: [f32; 4],
     kind: u8,
+    value: f32,
 }
 
 impl PropertyAccess for VertexOut {
@@ -54,6 +58,7 @@ impl PropertyAccess for VertexOut {
             "y" => Some(self.p[1]),
             "z" => Some(self.p[2]),
             "t" => Some(self.p[3]),
+            "value" => Some(self.value),
             _ => None,
         }
     }
@@ -85,8 +90,20 @@ fn element(name: &str, count: usize, props: &[(&str, PropertyType)]) -> ElementD
     e
 }
 
-/// Writes the hypersurface in physical space (layout in the module docs).
-pub fn write_hypersurface_ply(path: &Path, h: &Hypersurface, opts: &HyperOptions) -> Result<()> {
+/// Writes the hypersurface in physical space (layout in the module docs),
+/// with a vertex property `float value` when `values` (one per vertex, e.g.
+/// from [`Hypersurface::field_values`]) are given.
+pub fn write_hypersurface_ply(
+    path: &Path,
+    h: &Hypersurface,
+    opts: &HyperOptions,
+    values: Option<&[f64]>,
+) -> Result<()> {
+    if values.is_some_and(|v| v.len() != h.points.len()) {
+        return Err(Error::invalid(
+            "one field value per hypersurface vertex needed",
+        ));
+    }
     let points = h.physical_points();
     if let Some(i) = points
         .iter()
@@ -118,17 +135,19 @@ pub fn write_hypersurface_ply(path: &Path, h: &Hypersurface, opts: &HyperOptions
         opts.displace,
         h.time_step
     ));
-    header.elements.add(element(
-        "vertex",
-        points.len(),
-        &[
-            ("x", PropertyType::Scalar(f.clone())),
-            ("y", PropertyType::Scalar(f.clone())),
-            ("z", PropertyType::Scalar(f.clone())),
-            ("t", PropertyType::Scalar(f)),
-            ("kind", PropertyType::Scalar(ScalarType::UChar)),
-        ],
-    ));
+    let mut vprops = vec![
+        ("x", PropertyType::Scalar(f.clone())),
+        ("y", PropertyType::Scalar(f.clone())),
+        ("z", PropertyType::Scalar(f.clone())),
+        ("t", PropertyType::Scalar(f.clone())),
+        ("kind", PropertyType::Scalar(ScalarType::UChar)),
+    ];
+    if values.is_some() {
+        vprops.push(("value", PropertyType::Scalar(f)));
+    }
+    header
+        .elements
+        .add(element("vertex", points.len(), &vprops));
     header.elements.add(element(
         "tetra",
         tets.len(),
@@ -143,10 +162,11 @@ pub fn write_hypersurface_ply(path: &Path, h: &Hypersurface, opts: &HyperOptions
         let mut buf = Vec::with_capacity(1 << 20);
         let vw = Writer::<VertexOut>::new();
         let vdef = &header.elements["vertex"];
-        for (p, &k) in points.iter().zip(&h.kinds) {
+        for (i, (p, &k)) in points.iter().zip(&h.kinds).enumerate() {
             let item = VertexOut {
                 p: p.map(|c| c as f32),
                 kind: k as u8,
+                value: values.map_or(0.0, |v| v[i] as f32),
             };
             vw.write_little_endian_element(&mut buf, &item, vdef)?;
             if buf.len() >= 1 << 20 {
@@ -174,6 +194,8 @@ pub fn write_hypersurface_ply(path: &Path, h: &Hypersurface, opts: &HyperOptions
 #[derive(Clone, Debug, Default)]
 pub struct HyperPly {
     pub points: Vec<[f64; 4]>,
+    /// The `value` property, if present.
+    pub values: Option<Vec<f64>>,
     pub kinds: Vec<u8>,
     pub tets: Vec<[u32; 4]>,
     pub comments: Vec<String>,
@@ -212,6 +234,9 @@ pub fn read_hypersurface_ply(path: &Path) -> Result<HyperPly> {
         };
         out.points.push([x, y, z, t]);
         out.kinds.push(num(v.get("kind")).unwrap_or(0.0) as u8);
+        if let Some(x) = num(v.get("value")) {
+            out.values.get_or_insert_with(Vec::new).push(x);
+        }
     }
     let n = out.points.len();
     for (i, e) in ply.payload.get("tetra").into_iter().flatten().enumerate() {
