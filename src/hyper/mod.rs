@@ -11,7 +11,7 @@
 //! polyhedron per connected piece around each grid vertex, cut into
 //! tetrahedra around face centres and a volume centre. [`Hypersurface::slice`]
 //! cuts it at any time `T` into a closed, outward-oriented triangle surface
-//! (an [`InterfaceMesh`], checked by [`crate::mesh::validate`]): the shape at
+//! (an [`InterfaceMesh`](crate::mesh::InterfaceMesh), checked by [`crate::mesh::validate`]): the shape at
 //! `T`, continuous in `T`, with no correspondence problem between frames.
 //!
 //! # The path table and the facts it gives
@@ -74,9 +74,12 @@
 //! surface of frame `k` with every N-cycle (N > 3) cut into a fan around its
 //! mean point — `septa iso --decompose h` — vertex for vertex (face centres up
 //! to rounding), provided VESTA's H does not fall back to L for a degenerate
-//! fan. At other times, if a hypersurface vertex lies within 10⁻⁶ frames of
-//! `T` (a saddle there would pinch the exact slice), the slice is taken a few
-//! 10⁻⁶ frames earlier; [`TimeSlice::sliced_at`] says where.
+//! fan. At any time, a hypersurface vertex within 10⁻⁶ frames of `T` is the
+//! cut point itself (the edges from it to earlier vertices all meet the slice
+//! there). If that pinches two sheets together — a topology change exactly
+//! at `T`, where the exact level set is not a manifold — the cut points
+//! around that vertex are taken 10⁻³ frames earlier instead
+//! ([`TimeSlice::separated`] counts such vertices; never at frame times).
 //!
 //! Files of this module:
 //! - `cell.rs`: numbering of the 2⁴ cell (toxels, cubes, squares, half-edges);
@@ -542,7 +545,7 @@ pub fn hypersurface_image(
 
 /// Stacks 3-D images (one per frame, in order) into one 4-D sample array:
 /// every frame must have the same grid; the geometry is the first frame's
-/// (an error if another frame's differs by more than 10⁻⁶ mm per voxel).
+/// (an error if another frame's affine differs by more than 10⁻⁶, relative).
 pub fn stack_frames(frames: &[Image]) -> Result<(Vec<f64>, [usize; 4], Geometry)> {
     let Some(first) = frames.first() else {
         return Err(Error::invalid("no frames given"));

@@ -1,13 +1,18 @@
 //! Time slices: the closed surface where the hypersurface meets `t = T`.
 //!
-//! Every tetrahedron with vertices on both sides of `T` (below: `t < T`,
-//! above: `t ≥ T`) is cut in a triangle (one vertex alone on its side) or a
-//! quadrilateral (two and two, split along the better diagonal). A cut point
-//! is named by its hypersurface edge (below end, above end), so neighbouring
-//! tetrahedra share it and the slice is one closed surface over one vertex
-//! pool; where the above end lies exactly at `T` (only at a frame's own time,
-//! see the module docs of [`crate::hyper`]) the cut point is that vertex, and
-//! pieces that shrink to fewer than three points are dropped.
+//! Every tetrahedron with vertices on both sides of `T` (below: `t < T − ε`,
+//! above: the rest, ε = [`NEAR`]) is cut in a triangle (one vertex alone on
+//! its side) or a quadrilateral (two and two, split along the better
+//! diagonal). A cut point is named by its hypersurface edge (below end, above
+//! end), so neighbouring tetrahedra share it and the slice is one closed
+//! surface over one vertex pool. Where the above end lies at `T` (within ε)
+//! the cut point is that vertex — the limit of slices just before `T` — and
+//! pieces that shrink to fewer than three points are dropped (a vertex where
+//! a component vanishes leaves nothing). That is exact at frame times (see
+//! [`crate::hyper`]); elsewhere a vertex at `T` can be a saddle where two
+//! sheets would touch: a merged vertex whose triangles do not form one fan is
+//! *separated* — its cut points are taken [`SEPARATE`] frames earlier — and
+//! the slice is cut again.
 //!
 //! **Orientation.** With the tetrahedron's vertices reordered below-first (a
 //! permutation of parity π), the piece is listed as
