@@ -47,12 +47,12 @@
 //! cycle. The link of a support point or face centre is a sphere; the link
 //! of a volume centre is the boundary of its polyhedron, which is a sphere
 //! except in rare cells where the active toxels around the grid vertex form a
-//! ring in its 3-sphere link (a toroidal polyhedron — 3,720 of the 2 × 65,536
-//! global-mode configurations): there the hypersurface is a cone over a torus
-//! at one point, as the boundary of the binary 4-D region genuinely is.
-//! [`HyperStats::higher_genus`] counts them. Slices are unaffected (a cone
-//! point is a vertex; slices never pass through vertices except at frame
-//! times, where no volume centre lies).
+//! ring in its 3-sphere link (a toroidal polyhedron; 3,720 of them, 1,860 per
+//! mode, over all 2 × 65,536 global-mode cell configurations): there the
+//! hypersurface is a cone over a torus at one point, as the boundary of the
+//! binary 4-D region genuinely is. [`HyperStats::higher_genus`] counts them.
+//! Slices are unaffected: a cone point is one vertex, strictly between frames,
+//! and a slice through it is handled like one through any vertex (below).
 //!
 //! # Orientation
 //!
