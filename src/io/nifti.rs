@@ -629,15 +629,15 @@ pub fn write_image(path: &Path, image: &Image) -> Result<()> {
     if count != image.samples.len() {
         return Err(Error::input(
             path,
-            format!(
-                "{} samples for the extents {dims:?}",
-                image.samples.len()
-            ),
+            format!("{} samples for the extents {dims:?}", image.samples.len()),
         ));
     }
     if let Some(dt) = image.time_step {
         if !(dt.is_finite() && dt > 0.0) {
-            return Err(Error::input(path, format!("time step {dt} is not positive")));
+            return Err(Error::input(
+                path,
+                format!("time step {dt} is not positive"),
+            ));
         }
     }
     let dtype = image.samples.dtype();
