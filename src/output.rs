@@ -100,6 +100,13 @@ pub fn write_outdir(
     formats: Formats,
     mut manifest: serde_json::Value,
 ) -> Result<Vec<PathBuf>> {
+    write_dir_atomically(outdir, |tmp| write_files(tmp, mesh, formats, &mut manifest))
+}
+
+/// Fills a temporary directory beside `outdir` with `fill`, then moves it to
+/// `outdir` (replacing an old one); on any error the temporary directory is
+/// removed and `outdir` is left as it was.
+pub fn write_dir_atomically<T>(outdir: &Path, fill: impl FnOnce(&Path) -> Result<T>) -> Result<T> {
     let parent = match outdir.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
@@ -112,10 +119,13 @@ pub fn write_outdir(
         .into_owned();
     let tmp = parent.join(format!(".{name}.tmp-septa-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
-    let result = write_files(&tmp, mesh, formats, &mut manifest).and_then(|files| {
-        swap_into_place(&tmp, outdir, &parent, &name)?;
-        Ok(files)
-    });
+    let result = std::fs::create_dir_all(&tmp)
+        .map_err(|e| Error::io(&tmp, e))
+        .and_then(|_| fill(&tmp))
+        .and_then(|value| {
+            swap_into_place(&tmp, outdir, &parent, &name)?;
+            Ok(value)
+        });
     if result.is_err() {
         let _ = std::fs::remove_dir_all(&tmp);
     }

@@ -371,20 +371,7 @@ fn write_outdir(
     slices: &[SliceOut],
     summary: &serde_json::Value,
 ) -> Result<()> {
-    let parent = match outdir.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
-    let name = outdir
-        .file_name()
-        .ok_or_else(|| Error::input(outdir, "is not a directory name"))?
-        .to_string_lossy()
-        .into_owned();
-    let tmp = parent.join(format!(".{name}.tmp-septa-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&tmp);
-    let result = (|| -> Result<()> {
-        std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    septa::output::write_dir_atomically(outdir, |tmp| {
         if !args.no_hypersurface {
             write_hypersurface_ply(&tmp.join("hypersurface.ply"), h, opts, values)?;
         }
@@ -394,21 +381,8 @@ fn write_outdir(
         let mut json =
             serde_json::to_vec_pretty(summary).map_err(|e| Error::invalid(e.to_string()))?;
         json.push(b'\n');
-        septa::io::atomic_write(&tmp.join("summary.json"), &json)?;
-        if outdir.exists() {
-            let old = parent.join(format!(".{name}.old-septa-{}", std::process::id()));
-            std::fs::rename(outdir, &old).map_err(|e| Error::io(outdir, e))?;
-            std::fs::rename(&tmp, outdir).map_err(|e| Error::io(outdir, e))?;
-            std::fs::remove_dir_all(&old).map_err(|e| Error::io(&old, e))?;
-        } else {
-            std::fs::rename(&tmp, outdir).map_err(|e| Error::io(outdir, e))?;
-        }
-        Ok(())
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_dir_all(&tmp);
-    }
-    result
+        septa::io::atomic_write(&tmp.join("summary.json"), &json)
+    })
 }
 
 fn summary_json(
