@@ -21,6 +21,9 @@ pub struct HalfedgeMesh {
     /// the operations (new vertices get `NONE` unless set).
     pub tag: Vec<u32>,
     pub locked: Vec<bool>,
+    /// Caller's hint per vertex (e.g. a nearby reference triangle), carried
+    /// like `tag`: a split's new vertex gets the hint of the edge's origin.
+    pub hint: Vec<u32>,
     v_out: Vec<u32>,
     v_dead: Vec<bool>,
     h_to: Vec<u32>,
@@ -56,6 +59,7 @@ impl HalfedgeMesh {
             pos,
             tag,
             locked: vec![false; nv],
+            hint: vec![NONE; nv],
             v_out: vec![NONE; nv],
             v_dead: vec![false; nv],
             ..Default::default()
@@ -107,9 +111,10 @@ impl HalfedgeMesh {
         h
     }
 
-    fn new_vertex(&mut self, p: DVec3, tag: u32) -> u32 {
+    fn new_vertex(&mut self, p: DVec3, tag: u32, hint: u32) -> u32 {
         self.pos.push(p);
         self.tag.push(tag);
+        self.hint.push(hint);
         self.locked.push(false);
         self.v_out.push(NONE);
         self.v_dead.push(false);
@@ -160,7 +165,7 @@ impl HalfedgeMesh {
                 let target = if i == 0 {
                     v as u32
                 } else {
-                    self.new_vertex(self.pos[v], self.tag[v])
+                    self.new_vertex(self.pos[v], self.tag[v], self.hint[v])
                 };
                 // every outgoing halfedge of this fan now starts at `target`
                 let mut h = b;
@@ -320,7 +325,7 @@ impl HalfedgeMesh {
         // before: h = a->b in face (a, b, c) [or boundary]; o = b->a in face (b, a, d) [or boundary]
         let o = h ^ 1;
         let (a, b) = (self.from(h), self.to(h));
-        let m = self.new_vertex(p, NONE);
+        let m = self.new_vertex(p, NONE, self.hint[a as usize]);
         // h becomes a->m, o becomes m->a; new pair t: m->b, t^1: b->m
         let t = self.new_edge(m, b);
         self.h_to[h as usize] = m;
@@ -638,12 +643,14 @@ impl HalfedgeMesh {
         let mut pos = Vec::new();
         let mut tag = Vec::new();
         let mut locked = Vec::new();
+        let mut hint = Vec::new();
         for v in 0..self.pos.len() {
             if !self.v_dead[v] && self.v_out[v] != NONE {
                 vmap[v] = pos.len() as u32;
                 pos.push(self.pos[v]);
                 tag.push(self.tag[v]);
                 locked.push(self.locked[v]);
+                hint.push(self.hint[v]);
             }
         }
         let tris: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|v| vmap[v as usize])).collect();
@@ -652,6 +659,8 @@ impl HalfedgeMesh {
         // fans were already split; the rebuild adds no vertices
         m.locked = locked;
         m.locked.resize(m.pos.len(), false);
+        m.hint = hint;
+        m.hint.resize(m.pos.len(), NONE);
         *self = m;
         vmap
     }

@@ -23,7 +23,7 @@ use rayon::prelude::*;
 
 use super::halfedge::{HalfedgeMesh, NONE};
 use super::network::{Network, VertexKind};
-use super::project::{CurveRef, SurfaceRef};
+use super::project::{CurveRef, NO_TRIANGLE, SurfaceRef};
 use crate::error::{Error, Result};
 use crate::extract::is_degenerate;
 use crate::mesh::{InterfaceMesh, JunctionCurve};
@@ -58,8 +58,12 @@ pub(super) struct Fit<'a> {
 }
 
 impl Fit<'_> {
+    /// Whether triangle (a, b, c) fits: `Some` with a reference triangle near
+    /// it (a hint for the next check nearby), `None` if it does not fit.
+    /// `hint` is a reference triangle near it (or [`NO_TRIANGLE`]); it only
+    /// makes the answer faster.
     #[inline]
-    pub(super) fn ok(&self, a: DVec3, b: DVec3, c: DVec3) -> bool {
+    pub(super) fn check(&self, a: DVec3, b: DVec3, c: DVec3, hint: u32) -> Option<u32> {
         // A triangle much smaller than eps between vertices on (or near) the
         // reference cannot stray from it; the local normal checks of the
         // operations already keep it from folding over.
@@ -68,9 +72,15 @@ impl Fit<'_> {
             && (c - b).length_squared() <= small
             && (a - c).length_squared() <= small
         {
-            return true;
+            return Some(hint);
         }
-        self.reference.fits(a, b, c, self.eps)
+        self.reference.fits(a, b, c, self.eps, hint)
+    }
+
+    /// Whether triangle (a, b, c) fits (see [`Fit::check`]).
+    #[inline]
+    pub(super) fn ok(&self, a: DVec3, b: DVec3, c: DVec3, hint: u32) -> bool {
+        self.check(a, b, c, hint).is_some()
     }
 }
 
@@ -151,18 +161,25 @@ impl Remesher {
         }
     }
 
-    /// Runs `iterations` curve + patch passes.
-    pub(crate) fn run(&mut self, iterations: u32) {
+    /// Runs `iterations` curve + patch passes; returns the seconds spent on
+    /// curves and on patches.
+    pub(crate) fn run(&mut self, iterations: u32) -> (f64, f64) {
+        let (mut curves, mut patches) = (0.0, 0.0);
         for _ in 0..iterations {
+            let clock = std::time::Instant::now();
             for c in 0..self.curves.len() {
                 self.remesh_curve(c);
             }
+            curves += clock.elapsed().as_secs_f64();
+            let clock = std::time::Instant::now();
             let (target, eps) = (self.target, self.eps);
             self.patches
                 .par_iter_mut()
                 .for_each(|st| remesh_patch(st, target, eps));
             self.rebuild_copies();
+            patches += clock.elapsed().as_secs_f64();
         }
+        (curves, patches)
     }
 
     /// The boundary halfedge from local copy of `u` to a local copy of `v` in each patch.
@@ -479,15 +496,32 @@ fn build_patch(
     for v in 0..m.vertex_slots() {
         m.locked[v] = net.on_junction(m.tag[v]);
     }
+    // Faces are numbered like the reference triangles (the mesh is what the
+    // reference was made of): the neighbours across edges come from the
+    // halfedges, and every vertex starts with one of its own triangles as hint.
+    let mut adjacent = vec![[NO_TRIANGLE; 3]; ref_tris.len()];
+    for (f, row) in adjacent.iter_mut().enumerate() {
+        let mut h = m.face_halfedge(f as u32);
+        for slot in row.iter_mut() {
+            let across = m.face(h ^ 1);
+            if across != NONE {
+                *slot = across;
+            }
+            let from = m.from(h) as usize;
+            m.hint[from] = f as u32;
+            h = m.next(h);
+        }
+    }
     Ok(PatchState {
         mesh: m,
-        reference: SurfaceRef::new(ref_tris),
+        reference: SurfaceRef::with_adjacency(ref_tris, adjacent),
     })
 }
 
 /// Whether moving vertex `v` to `p` keeps every incident triangle facing the
 /// same way and of acceptable quality.
 pub(super) fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3, fit: Fit) -> bool {
+    let mut hint = m.hint[v as usize];
     for h in m.outgoing(v) {
         if m.is_boundary_halfedge(h) {
             continue;
@@ -505,8 +539,9 @@ pub(super) fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3, fit: Fit) -> bool {
         if q_new < MIN_QUALITY && q_new < q_old {
             return false;
         }
-        if !fit.ok(p, a, b) {
-            return false;
+        match fit.check(p, a, b, hint) {
+            Some(near) => hint = near,
+            None => return false,
         }
     }
     true
@@ -523,6 +558,7 @@ pub(super) fn collapse_geometry_ok(
     fit: Fit,
 ) -> bool {
     let (v0, v1) = (m.from(h), m.to(h));
+    let mut hint = m.hint[v1 as usize];
     for g in m.outgoing(v0) {
         let w = m.to(g);
         if w != v1 && (m.pos[w as usize] - p).length() > max_edge {
@@ -571,8 +607,9 @@ pub(super) fn collapse_geometry_ok(
         if q_new < MIN_QUALITY && q_new < q_old {
             return false;
         }
-        if !fit.ok(p, pa, pb) {
-            return false;
+        match fit.check(p, pa, pb, hint) {
+            Some(near) => hint = near,
+            None => return false,
         }
     }
     true
@@ -630,11 +667,13 @@ fn collapse_short_edges(m: &mut HalfedgeMesh, target: f64, fit: Fit) {
         {
             continue;
         }
-        let p = fit
-            .reference
-            .project((m.pos[v0 as usize] + m.pos[v1 as usize]) * 0.5);
+        let (p, near) = fit.reference.project_from(
+            (m.pos[v0 as usize] + m.pos[v1 as usize]) * 0.5,
+            m.hint[v1 as usize],
+        );
         if collapse_geometry_ok(m, e, p, hi, fit) && collapse_geometry_ok(m, e ^ 1, p, hi, fit) {
             m.pos[v1 as usize] = p;
+            m.hint[v1 as usize] = near;
             m.collapse(e);
         }
     }
@@ -677,13 +716,16 @@ pub(super) fn flip_geometry_ok(m: &HalfedgeMesh, a: u32, b: u32, c: u32, d: u32,
     }
     let q_old = triangle_quality(pa, pb, pc).min(triangle_quality(pb, pa, pd));
     let q_new = triangle_quality(pd, pc, pa).min(triangle_quality(pc, pd, pb));
-    q_new >= q_old.min(MIN_QUALITY) && fit.ok(pd, pc, pa) && fit.ok(pc, pd, pb)
+    q_new >= q_old.min(MIN_QUALITY)
+        && fit
+            .check(pd, pc, pa, m.hint[a as usize])
+            .is_some_and(|near| fit.ok(pc, pd, pb, near))
 }
 
 /// Tangential relaxation toward the centroid of the one-ring, then projection
 /// onto the reference; moves that would turn a triangle over are skipped.
 fn relax_and_project(m: &mut HalfedgeMesh, fit: Fit) {
-    let moves: Vec<(u32, DVec3)> = m
+    let moves: Vec<(u32, DVec3, u32)> = m
         .vertices()
         .collect::<Vec<_>>()
         .into_iter()
@@ -702,12 +744,16 @@ fn relax_and_project(m: &mut HalfedgeMesh, fit: Fit) {
             }
             let n = normal.normalize_or_zero();
             let d = centroid / k - p;
-            (v, fit.reference.project(p + d - n * d.dot(n)))
+            let (onto, near) = fit
+                .reference
+                .project_from(p + d - n * d.dot(n), m.hint[v as usize]);
+            (v, onto, near)
         })
         .collect();
-    for (v, p) in moves {
+    for (v, p, near) in moves {
         if move_ok(m, v, p, fit) {
             m.pos[v as usize] = p;
+            m.hint[v as usize] = near;
         }
     }
 }

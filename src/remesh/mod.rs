@@ -91,6 +91,23 @@ pub struct Remeshed {
     pub smoothed: InterfaceMesh,
     /// Pairs of intersecting triangles the repair pass could not remove.
     pub intersections_left: usize,
+    /// Wall time of each step.
+    pub timings: RemeshTimings,
+}
+
+/// Wall time of the steps of [`remesh`], in seconds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct RemeshTimings {
+    /// Staircase smoothing (with untangling): the reference surface.
+    pub smooth: f64,
+    /// Setting up patch meshes and reference search structures.
+    pub setup: f64,
+    /// Junction curve passes, all iterations.
+    pub curves: f64,
+    /// Patch passes, all iterations.
+    pub patches: f64,
+    /// Self-intersection repair.
+    pub repair: f64,
 }
 
 /// Rounds of the self-intersection repair pass.
@@ -103,6 +120,8 @@ const FIT_VOXELS: f64 = 0.3;
 /// Smooths and remeshes all patches of `mesh`.
 pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
     params.validate()?;
+    let mut timings = RemeshTimings::default();
+    let clock = std::time::Instant::now();
     let net = network::Network::new(mesh);
     let smoothed_pos = smooth::smooth(
         mesh,
@@ -110,6 +129,7 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
         params.smooth_iterations,
         params.max_displacement,
     );
+    timings.smooth = clock.elapsed().as_secs_f64();
     let voxel = mesh
         .geometry
         .spacing()
@@ -123,8 +143,11 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
         params.target_edge,
         FIT_VOXELS * voxel,
     )?;
-    r.run(params.iterations);
+    timings.setup = clock.elapsed().as_secs_f64() - timings.smooth;
+    (timings.curves, timings.patches) = r.run(params.iterations);
+    let before_repair = clock.elapsed().as_secs_f64();
     let intersections_left = r.repair_intersections(REPAIR_ROUNDS);
+    timings.repair = clock.elapsed().as_secs_f64() - before_repair;
     let out = r.into_mesh(mesh);
     let smoothed = InterfaceMesh {
         positions: smoothed_pos,
@@ -134,5 +157,6 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
         mesh: out,
         smoothed,
         intersections_left,
+        timings,
     })
 }

@@ -16,6 +16,7 @@ use hashbrown::HashSet;
 
 use super::halfedge::{HalfedgeMesh, NONE};
 use super::isotropic::{Fit, Remesher, Snapshot, collapse_geometry_ok, flip_geometry_ok, move_ok};
+use super::project::NO_TRIANGLE;
 use crate::mesh::intersect::{Bvh, self_intersections, triangles_intersect};
 
 /// A candidate change: per patch it touches, the faces it replaces and the
@@ -319,7 +320,7 @@ fn candidates(m: &HalfedgeMesh, patch: u32, f: u32, fit: Fit, hi: f64) -> Vec<Ca
             });
             (y - x).cross(z - x).dot(n) > 0.0
                 && !crate::extract::is_degenerate(x, y, z)
-                && fit.ok(x, y, z)
+                && fit.ok(x, y, z, NO_TRIANGLE)
         });
         if ok {
             out.push(Candidate {

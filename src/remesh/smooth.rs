@@ -12,7 +12,7 @@ use rayon::prelude::*;
 
 use super::network::{Network, VertexKind};
 use crate::mesh::InterfaceMesh;
-use crate::mesh::intersect::{intersections_of, self_intersections};
+use crate::mesh::intersect::{intersections_in, self_intersections_and_bvh, triangle_box};
 
 /// Taubin's pass factors: a shrinking step λ and an inflating step μ (|μ| > λ).
 const LAMBDA: f64 = 0.5;
@@ -25,27 +25,62 @@ pub(crate) struct Adjacency {
 }
 
 impl Adjacency {
-    /// Unique neighbours of every vertex over the triangles.
+    /// Unique neighbours of every vertex over the triangles, each row sorted.
     pub(crate) fn new(n: usize, tris: &[[u32; 3]]) -> Self {
-        let mut pairs: Vec<(u32, u32)> = tris
-            .par_iter()
-            .flat_map_iter(|t| {
-                (0..3).flat_map(move |k| [(t[k], t[(k + 1) % 3]), (t[(k + 1) % 3], t[k])])
-            })
-            .collect();
-        pairs.par_sort_unstable();
-        pairs.dedup();
+        // rows with repeats by counting (each vertex gets both other corners
+        // of each of its triangles), then every short row sorted and deduped
         let mut start = vec![0u32; n + 1];
-        for &(a, _) in &pairs {
-            start[a as usize + 1] += 1;
+        for t in tris {
+            for &v in t {
+                start[v as usize + 1] += 2;
+            }
         }
         for v in 0..n {
             start[v + 1] += start[v];
         }
-        Adjacency {
-            start,
-            list: pairs.into_iter().map(|p| p.1).collect(),
+        let mut fill = start.clone();
+        let mut list = vec![0u32; start[n] as usize];
+        for t in tris {
+            for k in 0..3 {
+                let (v, a, b) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                let at = fill[v as usize] as usize;
+                list[at] = a;
+                list[at + 1] = b;
+                fill[v as usize] += 2;
+            }
         }
+        let mut rows: Vec<&mut [u32]> = Vec::with_capacity(n);
+        let mut rest = list.as_mut_slice();
+        for v in 0..n {
+            let (row, tail) = rest.split_at_mut((start[v + 1] - start[v]) as usize);
+            rows.push(row);
+            rest = tail;
+        }
+        let lens: Vec<u32> = rows
+            .into_par_iter()
+            .map(|row| {
+                row.sort_unstable();
+                let mut k = 0;
+                for i in 0..row.len() {
+                    if i == 0 || row[i] != row[k - 1] {
+                        row[k] = row[i];
+                        k += 1;
+                    }
+                }
+                k as u32
+            })
+            .collect();
+        // compact the rows
+        let mut packed = 0usize;
+        for v in 0..n {
+            let (from, len) = (start[v] as usize, lens[v] as usize);
+            list.copy_within(from..from + len, packed);
+            start[v] = packed as u32;
+            packed += len;
+        }
+        start[n] = packed as u32;
+        list.truncate(packed);
+        Adjacency { start, list }
     }
 
     #[inline]
@@ -172,7 +207,22 @@ const UNTANGLE_ROUNDS: usize = 6;
 /// held back, the rest keep their smoothed positions.
 pub(crate) fn untangle(tris: &[[u32; 3]], start: &[DVec3], pos: &mut [DVec3]) -> usize {
     let mut held = 0;
-    let mut pairs = self_intersections(pos, tris);
+    let (mut pairs, mut bvh) = self_intersections_and_bvh(pos, tris);
+    if pairs.is_empty() {
+        return 0;
+    }
+    // Every vertex stays on the segment from its start to its smoothed
+    // position, so boxes around both triangles hold it in every round: one
+    // BVH (the first one, refitted) serves all rounds.
+    let boxes: Vec<(DVec3, DVec3)> = tris
+        .par_iter()
+        .map(|&t| {
+            let (a, b) = (triangle_box(start, t), triangle_box(pos, t));
+            (a.0.min(b.0), a.1.max(b.1))
+        })
+        .collect();
+    bvh.refit(&boxes);
+    let mut moved = vec![false; pos.len()];
     for round in 0..=UNTANGLE_ROUNDS {
         if pairs.is_empty() {
             break;
@@ -184,7 +234,7 @@ pub(crate) fn untangle(tris: &[[u32; 3]], start: &[DVec3], pos: &mut [DVec3]) ->
         verts.sort_unstable();
         verts.dedup();
         let keep = if round == UNTANGLE_ROUNDS { 0.0 } else { 0.5 };
-        let mut moved = vec![false; pos.len()];
+        moved.fill(false);
         for &v in &verts {
             let v = v as usize;
             pos[v] = start[v] + (pos[v] - start[v]) * keep;
@@ -193,9 +243,10 @@ pub(crate) fn untangle(tris: &[[u32; 3]], start: &[DVec3], pos: &mut [DVec3]) ->
         held += verts.len();
         // only triangles at moved vertices can have changed
         let touched: Vec<u32> = (0..tris.len() as u32)
+            .into_par_iter()
             .filter(|&t| tris[t as usize].iter().any(|&v| moved[v as usize]))
             .collect();
-        pairs = intersections_of(pos, tris, Some(&touched));
+        pairs = intersections_in(pos, tris, &bvh, Some(&touched));
     }
     held
 }
