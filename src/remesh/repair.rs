@@ -214,11 +214,29 @@ fn candidates(m: &HalfedgeMesh, patch: u32, f: u32, fit: Fit, hi: f64) -> Vec<Ca
         let p = m.pos[v as usize];
         let ring: Vec<u32> = m.outgoing(v).map(|g| m.to(g)).collect();
         let centroid = ring.iter().map(|&w| m.pos[w as usize]).sum::<DVec3>() / ring.len() as f64;
+        // along the vertex normal, both ways, onto the reference: where a
+        // small patch lies flat against another (a thin lens between two
+        // patches on one junction loop) its vertex must go back to its own
+        // side of the lens
+        let normal = m
+            .outgoing(v)
+            .filter(|&g| !m.is_boundary_halfedge(g))
+            .map(|g| m.face_normal(m.face(g)))
+            .sum::<DVec3>()
+            .normalize_or_zero();
+        let offsets = [0.25, 0.5, -0.25, -0.5].map(|k| {
+            fit.reference
+                .project_from(p + normal * (k * hi), m.hint[v as usize])
+                .0
+        });
         for target in [
             fit.reference.project(centroid),
             fit.reference.project((p + centroid) * 0.5),
             centroid,
-        ] {
+        ]
+        .into_iter()
+        .chain(offsets)
+        {
             if move_ok(m, v, target, fit) {
                 let faces: Vec<u32> = m
                     .outgoing(v)
