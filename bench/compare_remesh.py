@@ -200,17 +200,23 @@ def main(args, np) -> None:
     out = work / f"{name}.septa"
     best = {k: float("inf") for k in ["septa", "septa_remesh", "sn", "pml_whole", "pml_label"]}
     septa_best = None
+    every = {k: [] for k in best}  # every repeat's time, for the record
+
+    def note(k, v):
+        every[k].append(v)
+        best[k] = min(best[k], v)
     results = {}
     for rep in range(args.repeats):
         s = septa_run(exe, vol, out, L)
         if s["wall"] < best["septa"]:
-            best["septa"], septa_best = s["wall"], s
-        best["septa_remesh"] = min(best["septa_remesh"], s["timings"]["remesh"])
+            septa_best = s
+        note("septa", s["wall"])
+        note("septa_remesh", s["timings"]["remesh"])
 
         f = surface_nets_smoothed(vtk, img, fg, background)
         t = time.perf_counter()
         f.Update()
-        best["sn"] = min(best["sn"], time.perf_counter() - t)
+        note("sn", time.perf_counter() - t)
         pd = f.GetOutput()
         tri, lab = C.surface_nets_faces(pd)
         p = C.to_lps(C.points_of(pd) - 1.0, nii.affine).astype(np.float64)
@@ -220,14 +226,16 @@ def main(args, np) -> None:
         if "whole" in args.pml_variants:
             t = time.perf_counter()
             results["whole"] = pml_whole(ml, np, p, tri, lab, L)
-            best["pml_whole"] = min(best["pml_whole"], time.perf_counter() - t)
+            note("pml_whole", time.perf_counter() - t)
         if "per-label" in args.pml_variants:
             t = time.perf_counter()
             results["per-label"] = pml_per_label(ml, np, p, tri, lab, fg, L)
-            best["pml_label"] = min(best["pml_label"], time.perf_counter() - t)
+            note("pml_label", time.perf_counter() - t)
         print(f"repeat {rep + 1}/{args.repeats} (load {C.loadavg()}): "
-              + ", ".join(f"{k} {v:.2f} s" for k, v in best.items() if v < float("inf")), flush=True)
+              + ", ".join(f"{k} {v[-1]:.2f} s" for k, v in every.items() if v), flush=True)
     header["load_end"] = C.loadavg()
+    header["every repeat (s)"] = "; ".join(
+        f"{k} " + ", ".join(f"{x:.2f}" for x in v) for k, v in every.items() if v)
 
     rows = []
     ts = septa_best["timings"]
@@ -298,7 +306,7 @@ def pct(x: float) -> str:
 def tables_of(rows, fg, exact_vol, voxels):
     t1 = [["pipeline", "time (s)", "÷ septa", "vertices", "triangles", "edges in [0.8 L, 1.33 L]",
            "mean / L", "std / L", "min angle", "min angle 1st pct", "min angle ≥ 20°",
-           "Hausdorff to exact (mm / voxels)", "volume change vs voxels: worst / mean |·|"]]
+           "Hausdorff to exact (mm / voxels)", "volume change vs voxels: worst / mean of abs."]]
     for r in rows:
         q = r["quality"]
         e, a, d = q["edges"], q["angles"], q["distance"]
