@@ -6,6 +6,7 @@ Run from anywhere (Python >= 3.10; it was written for 3.11):
     python3 bench/compare.py                      # 256^3 and 512^3, clean and --noise 0.01
     python3 bench/compare.py --sizes 256 --repeats 1
     python3 bench/compare.py --iso                # septa iso vs scikit-image and VTK flying edges
+    python3 bench/compare.py --remesh             # septa extract (remeshed) vs VTK surface nets + pymeshlab
 
 On its first run it creates bench/.venv and pip-installs bench/requirements.txt
 (vtk, numpy, nibabel) into it, then re-runs itself with that interpreter. It
@@ -362,6 +363,21 @@ def main() -> None:
                     "vtkFlyingEdges3D on the CT-like volume of benches/iso.rs (see compare_iso.py)")
     ap.add_argument("--iso-size", type=int, default=256, help="--iso: voxels per axis (default 256)")
     ap.add_argument("--iso-out", type=Path, help="--iso: also write the markdown tables here")
+    ap.add_argument("--remesh", action="store_true",
+                    help="instead: the whole pipeline with smoothing and remeshing, `septa extract "
+                    "--target-edge L` vs vtkSurfaceNets3D (smoothing on) + pymeshlab isotropic remeshing, "
+                    "time, quality and validator figures (see compare_remesh.py)")
+    ap.add_argument("--remesh-size", type=int, default=256, help="--remesh: phantom size (default 256)")
+    ap.add_argument("--remesh-noise", default="0.01", help="--remesh: phantom noise (default 0.01)")
+    ap.add_argument("--target-edge", type=float,
+                    help="--remesh: target edge length L in mm (default: twice the mean voxel spacing, "
+                    "septa's default)")
+    ap.add_argument("--pml-variants", default="whole,per-label",
+                    help="--remesh: pymeshlab on the whole multi-label mesh and/or on each label's "
+                    "surface (default whole,per-label)")
+    ap.add_argument("--remesh-out", type=Path, default=REPO / "BENCHMARKS.md",
+                    help="--remesh: markdown goes between its marker lines in this file "
+                    "(default BENCHMARKS.md)")
     args = ap.parse_args()
     if not args.no_venv and not in_venv():
         bootstrap()
@@ -374,6 +390,13 @@ def main() -> None:
         import compare_iso
 
         compare_iso.main(args, np, setup_vtk)
+        return
+
+    if args.remesh:
+        sys.path.insert(0, str(HERE))
+        import compare_remesh
+
+        compare_remesh.main(args, np)
         return
 
     exe = args.septa_bin.resolve() if args.septa_bin else build_septa()

@@ -293,7 +293,16 @@ fn help_of_every_command_names_its_options() {
                 "--config",
             ],
         ),
-        ("check", &["--json", "--intersections", "label_a"]),
+        (
+            "check",
+            &[
+                "--json",
+                "--intersections",
+                "label_a",
+                "--reference",
+                "--target-edge",
+            ],
+        ),
         (
             "phantom",
             &["--output", "--size", "--spacing", "--noise", "--seed"],
@@ -1300,4 +1309,88 @@ fn extract_remeshes_by_default() {
         ]),
         &["displacement"],
     );
+}
+
+/// `septa check --reference --target-edge` measures another tool's PLY the way
+/// `septa extract` measures its remeshed output: the same figures as the
+/// manifest's quality report (up to the PLY's f32 positions).
+#[test]
+fn check_quality_against_a_reference_matches_the_manifest() {
+    let dir = tempfile::tempdir().unwrap();
+    let exact = dir.path().join("exact");
+    extract_heart(&exact, &[]);
+    let out = dir.path().join("out");
+    let data = data("heart_phantom_48.nii.gz");
+    let cfg = heart_config();
+    ok(septa([
+        "extract",
+        p(&data),
+        "-c",
+        p(&cfg),
+        "-o",
+        p(&out),
+        "-q",
+        "--target-edge",
+        "3",
+    ]));
+    let m = manifest(&out);
+    let want = &m["quality"];
+    let j = ok_json(septa([
+        "check",
+        p(&out.join("interfaces.ply")),
+        "--json",
+        "--reference",
+        p(&exact.join("interfaces.ply")),
+        "--target-edge",
+        "3",
+    ]));
+    assert_eq!(j["passed"], true);
+    let q = &j["quality"];
+    let close = |a: &Value, b: &Value, tol: f64| {
+        let (a, b) = (a.as_f64().unwrap(), b.as_f64().unwrap());
+        assert!(
+            (a - b).abs() <= tol * (1.0 + b.abs()),
+            "{a} vs {b}\n{q}\n{want}"
+        );
+    };
+    for k in ["vertices", "triangles", "patches"] {
+        assert_eq!(q[k], want[k], "{k}");
+    }
+    assert_eq!(q["edges"]["count"], want["edges"]["count"]);
+    assert_eq!(q["edges"]["target_mm"], 3.0);
+    for k in ["mean_rel", "std_rel", "within_range"] {
+        close(&q["edges"][k], &want["edges"][k], 1e-4);
+    }
+    for k in ["min_deg", "min_p1_deg", "min_ge_20"] {
+        close(&q["angles"][k], &want["angles"][k], 1e-3);
+    }
+    close(
+        &q["distance"]["hausdorff_mm"],
+        &want["distance"]["hausdorff_mm"],
+        1e-3,
+    );
+    let changes = |r: &Value| -> Vec<(i64, f64)> {
+        r["labels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|l| !l["change"].is_null())
+            .map(|l| (l["value"].as_i64().unwrap(), l["change"].as_f64().unwrap()))
+            .collect()
+    };
+    let (a, b) = (changes(q), changes(want));
+    assert!(!a.is_empty());
+    assert_eq!(a.len(), b.len());
+    for ((va, ca), (vb, cb)) in a.iter().zip(&b) {
+        assert_eq!(va, vb);
+        assert!((ca - cb).abs() < 1e-4, "label {va}: {ca} vs {cb}");
+    }
+    // the text form prints the quality summary after the checks
+    let text = ok(septa([
+        "check",
+        p(&out.join("interfaces.ply")),
+        "--target-edge",
+        "3",
+    ]));
+    assert!(text.contains("within [0.8 L, 1.33 L]"), "{text}");
 }

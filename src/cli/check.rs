@@ -9,6 +9,7 @@ use super::show;
 use super::ui::{Ui, secs};
 use septa::Result;
 use septa::io::mesh_ply::read_ply;
+use septa::mesh::quality::{QualityOptions, quality};
 use septa::mesh::validate::{Options, validate};
 
 #[derive(Args, Debug)]
@@ -23,6 +24,16 @@ pub struct CheckArgs {
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Also measure the mesh's quality (as `septa extract` does after
+    /// remeshing): edge lengths, angles, valences, and against this reference
+    /// PLY (e.g. the `--no-remesh` extraction) the one-sided Hausdorff distance
+    /// and the volume change per label (labels matched by value).
+    #[arg(long, value_name = "PLY")]
+    pub reference: Option<PathBuf>,
+    /// Target edge length L in mm for the quality figures (implies them;
+    /// default: the mean edge length).
+    #[arg(long, value_name = "MM")]
+    pub target_edge: Option<f64>,
 }
 
 pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
@@ -41,8 +52,29 @@ pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
         },
     );
     let t_check = stage.done();
+    let quality = if args.reference.is_some() || args.target_edge.is_some() {
+        let reference = match &args.reference {
+            Some(path) => Some(read_ply(path)?.mesh),
+            None => None,
+        };
+        let stage = ui.stage("measuring quality");
+        let q = quality(
+            &ply.mesh,
+            reference.as_ref(),
+            &QualityOptions {
+                target_edge_mm: args.target_edge.unwrap_or(0.0),
+            },
+        );
+        stage.done();
+        Some(q)
+    } else {
+        None
+    };
     if args.json {
-        let j = serde_json::json!({"file": show(&args.mesh), "passed": report.passed(), "report": report});
+        let mut j = serde_json::json!({"file": show(&args.mesh), "passed": report.passed(), "report": report});
+        if let Some(q) = &quality {
+            j["quality"] = serde_json::to_value(q).expect("json");
+        }
         println!("{}", serde_json::to_string_pretty(&j).expect("json"));
     } else {
         ui.say(format!(
@@ -67,6 +99,9 @@ pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
                     }
                 ));
             }
+        }
+        if let Some(q) = &quality {
+            ui.say(q.summary().trim_end());
         }
     }
     Ok(if report.passed() {
