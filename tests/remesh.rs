@@ -187,8 +187,11 @@ fn noisy_phantom_quality() {
         },
     );
     let s = q.summary();
+    // at 256³ (structures 4–40 L wide) no crossing is left; here, where
+    // structures are 2–4 L wide, a few remain at junctions with small
+    // dihedral angles (9 pairs for this seed)
     assert!(
-        (bad as usize) * 100 < out.mesh.triangle_count(),
+        (bad as usize) * 1000 < out.mesh.triangle_count(),
         "{bad} intersections\n{s}"
     );
     assert!(q.edges.within_range >= 0.85, "{s}");
@@ -201,6 +204,56 @@ fn noisy_phantom_quality() {
                 assert!(change.abs() <= 0.05, "label {}: {s}", l.value);
             }
         }
+    }
+}
+
+/// Islands (one to three voxels of one label inside another: noise) stay
+/// closed, outward and free of intersections at target edges longer than
+/// they are: they are kept as smoothed rather than collapsed (a collapse to a
+/// tetrahedron could turn one inside out).
+#[test]
+fn islands_stay_outward() {
+    let n = 20usize;
+    let mut values = vec![1i64; n * n * n];
+    let mut x = 99u64;
+    let mut next = move |m: usize| {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x % m as u64) as usize
+    };
+    // islands of label 2 at random places, one to three voxels, apart
+    for k in 0..40 {
+        let (i, j, l) = (2 + next(n - 5), 2 + next(n - 5), 2 + next(n - 5));
+        let len = 1 + k % 3;
+        for d in 0..len {
+            values[(l * n + j) * n + i + d] = 2;
+        }
+    }
+    let vol = LabelVolume::from_values(
+        septa::volume::Dims::new(n, n, n).unwrap(),
+        &values,
+        septa::volume::Geometry::identity(),
+    )
+    .unwrap();
+    let r = Resolved::defaults(&vol);
+    let mesh = extraction(&vol, &r);
+    for target_edge in [1.5, 2.0, 4.0] {
+        let out = remesh(
+            &mesh,
+            &RemeshParams {
+                target_edge,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let name = format!("islands, L = {target_edge}");
+        assert_eq!(
+            assert_valid_but_intersections(&name, &out.mesh),
+            0,
+            "{name}"
+        );
+        assert_eq!(out.intersections_left, 0, "{name}");
     }
 }
 

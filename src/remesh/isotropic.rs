@@ -115,7 +115,7 @@ impl Remesher {
         let patches: Vec<PatchState> = groups
             .par_iter()
             .enumerate()
-            .map(|(p, tris)| build_patch(mesh, net, smoothed, p, tris, target))
+            .map(|(p, tris)| build_patch(mesh, net, smoothed, p, tris))
             .collect::<Result<_>>()?;
         let curve_ref = net
             .curves
@@ -468,7 +468,6 @@ fn build_patch(
     smoothed: &[DVec3],
     p: usize,
     tris: &[u32],
-    target: f64,
 ) -> Result<PatchState> {
     let mut local_of: HashMap<u32, u32> = HashMap::with_capacity(tris.len());
     let mut pos = Vec::new();
@@ -495,9 +494,10 @@ fn build_patch(
         ))
     })?;
     for v in 0..m.vertex_slots() {
-        m.locked[v] = net.on_junction(m.tag[v]);
+        // islands are locked like junction vertices: nothing moves them
+        m.locked[v] =
+            net.on_junction(m.tag[v]) || net.kind[m.tag[v] as usize] == VertexKind::Island;
     }
-    freeze_small_closed_components(&mut m, target);
     // Faces are numbered like the reference triangles (the mesh is what the
     // reference was made of): the neighbours across edges come from the
     // halfedges, and every vertex starts with one of its own triangles as hint.
@@ -518,45 +518,6 @@ fn build_patch(
         mesh: m,
         reference: SurfaceRef::with_adjacency(ref_tris, adjacent),
     })
-}
-
-/// Locks the vertices of closed components (no boundary: islands, e.g. a
-/// voxel of one label inside another) that fit in a cube of edge `target`:
-/// remeshing cannot make them better (at best a tetrahedron), and collapsing
-/// them that far can turn them inside out. They keep their smoothed shape.
-fn freeze_small_closed_components(m: &mut HalfedgeMesh, target: f64) {
-    let n = m.vertex_slots();
-    let mut seen = vec![false; n];
-    let mut stack = Vec::new();
-    let mut members = Vec::new();
-    for start in m.vertices().collect::<Vec<_>>() {
-        if seen[start as usize] {
-            continue;
-        }
-        seen[start as usize] = true;
-        stack.push(start);
-        members.clear();
-        let mut closed = true;
-        let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
-        while let Some(v) = stack.pop() {
-            members.push(v);
-            closed &= !m.is_boundary_vertex(v);
-            lo = lo.min(m.pos[v as usize]);
-            hi = hi.max(m.pos[v as usize]);
-            for h in m.outgoing(v) {
-                let w = m.to(h);
-                if !seen[w as usize] {
-                    seen[w as usize] = true;
-                    stack.push(w);
-                }
-            }
-        }
-        if closed && (hi - lo).max_element() <= target {
-            for &v in &members {
-                m.locked[v as usize] = true;
-            }
-        }
-    }
 }
 
 /// Whether moving vertex `v` to `p` keeps every incident triangle facing the

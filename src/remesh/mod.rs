@@ -117,12 +117,17 @@ const REPAIR_ROUNDS: usize = 20;
 /// smoothed reference: keeps chords from cutting across thin structures.
 const FIT_VOXELS: f64 = 0.3;
 
+/// Islands (closed components without junctions) at most this many target
+/// edges long are kept as extracted (see [`network::Network::mark_islands`]).
+const ISLAND_TARGETS: f64 = 4.0;
+
 /// Smooths and remeshes all patches of `mesh`.
 pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
     params.validate()?;
     let mut timings = RemeshTimings::default();
     let clock = std::time::Instant::now();
-    let net = network::Network::new(mesh);
+    let mut net = network::Network::new(mesh);
+    net.mark_islands(mesh, ISLAND_TARGETS * params.target_edge);
     let smoothed_pos = smooth::smooth(
         mesh,
         &net,

@@ -13,6 +13,9 @@ pub enum VertexKind {
     Curve(u32),
     /// An end of a junction curve, where curves meet: fixed.
     Corner,
+    /// On a small island (a closed surface component without junctions,
+    /// e.g. a few voxels of one label inside another): kept as extracted.
+    Island,
 }
 
 /// A junction curve: ordered global vertex ids.
@@ -56,6 +59,60 @@ impl Network {
     /// Whether vertex `v` is on a junction (curve or corner).
     #[inline]
     pub fn on_junction(&self, v: u32) -> bool {
-        self.kind[v as usize] != VertexKind::Interior
+        matches!(
+            self.kind[v as usize],
+            VertexKind::Curve(_) | VertexKind::Corner
+        )
+    }
+
+    /// Marks the vertices of islands no longer than `extent` (mm) along each
+    /// axis as [`VertexKind::Island`]: closed components of the mesh without
+    /// junction vertices. Smoothing would shrink such a component toward a
+    /// point or a needle (they are all high frequency), and remeshing to edges
+    /// as long as the island itself could only give a tetrahedron, which
+    /// collapses can turn inside out; so they keep their extracted shape.
+    /// Returns the number of islands marked.
+    pub fn mark_islands(&mut self, mesh: &InterfaceMesh, extent: f64) -> usize {
+        let n = mesh.vertex_count();
+        let mut parent: Vec<u32> = (0..n as u32).collect();
+        fn find(parent: &mut [u32], mut v: u32) -> u32 {
+            while parent[v as usize] != v {
+                parent[v as usize] = parent[parent[v as usize] as usize];
+                v = parent[v as usize];
+            }
+            v
+        }
+        for t in &mesh.triangles {
+            let r0 = find(&mut parent, t[0]);
+            for &v in &t[1..] {
+                let r = find(&mut parent, v);
+                if r != r0 {
+                    parent[r as usize] = r0;
+                }
+            }
+        }
+        let mut junction = vec![false; n];
+        let mut lo = vec![glam::DVec3::splat(f64::MAX); n];
+        let mut hi = vec![glam::DVec3::splat(f64::MIN); n];
+        let mut roots = vec![0u32; n];
+        for v in 0..n as u32 {
+            let r = find(&mut parent, v) as usize;
+            roots[v as usize] = r as u32;
+            junction[r] |= self.on_junction(v);
+            lo[r] = lo[r].min(mesh.positions[v as usize]);
+            hi[r] = hi[r].max(mesh.positions[v as usize]);
+        }
+        let small = |r: usize| {
+            !junction[r] && lo[r].x <= hi[r].x && (hi[r] - lo[r]).max_element() <= extent
+        };
+        let mut islands = 0;
+        for v in 0..n {
+            let r = roots[v] as usize;
+            if small(r) {
+                self.kind[v] = VertexKind::Island;
+                islands += usize::from(r == v);
+            }
+        }
+        islands
     }
 }

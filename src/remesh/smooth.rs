@@ -170,7 +170,7 @@ pub fn smooth(
     // 2-D: interior vertices over their one-rings
     let adj = Adjacency::new(pos.len(), &mesh.triangles);
     let interior: Vec<u32> = (0..pos.len() as u32)
-        .filter(|&v| !net.on_junction(v))
+        .filter(|&v| net.kind[v as usize] == VertexKind::Interior)
         .collect();
     for _ in 0..iterations {
         for f in [LAMBDA, MU] {
