@@ -223,12 +223,6 @@ pub fn iso_surface<T: Scalar>(
     opts: &IsoOptions,
 ) -> Result<IsoSurface> {
     let start = Instant::now();
-    let mut tick = |n: &str| {
-        if dbg {
-            eprintln!("  {n}: {:.1} ms", lap.elapsed().as_secs_f64() * 1e3);
-        }
-        lap = Instant::now();
-    };
     opts.check()?;
     if values.len() != dims.len() {
         return Err(Error::invalid(format!(
