@@ -356,36 +356,60 @@ pub(crate) fn support_points<T: Scalar, P: Fn(DVec3) -> DVec3 + Sync>(
     place: P,
 ) -> Vec<DVec3> {
     let mut out = vec![DVec3::ZERO; faces.total as usize];
-    let mut ranges = Vec::with_capacity(3 * faces.tasks());
+    // one task does the three axes of its cells, so that the samples it
+    // reads are still in cache for the second and third axis
+    let mut ranges: Vec<[&mut [DVec3]; 3]> = Vec::with_capacity(faces.tasks());
     let mut rest: &mut [DVec3] = &mut out;
     for a in 0..3 {
         for task in 0..faces.tasks() {
             let (head, tail) = rest.split_at_mut(faces.task_count(a, task));
-            ranges.push((a, task, head));
+            if a == 0 {
+                ranges.push([head, &mut [], &mut []]);
+            } else {
+                ranges[task][a] = head;
+            }
             rest = tail;
         }
     }
-    ranges.into_par_iter().for_each(|(a, task, out)| {
-        let words = faces.bits[a].len();
-        let (w0, w1) = (
-            task * WORDS_PER_TASK,
-            ((task + 1) * WORDS_PER_TASK).min(words),
-        );
-        let mut rows = Rows::new(&act.grid, w0 * 64);
-        let mut n = 0;
-        for w in w0..w1 {
-            let mut left = faces.bits[a][w];
-            while left != 0 {
-                let q = w * 64 + left.trailing_zeros() as usize;
-                left &= left - 1;
-                let hi = rows.coords(q);
-                out[n] = place(support_point(values, act, a, q, hi, iso, displace));
-                n += 1;
-            }
+    ranges.into_par_iter().enumerate().for_each(|(task, outs)| {
+        for (a, out) in outs.into_iter().enumerate() {
+            task_points(values, act, faces, (a, task), iso, displace, &place, out);
         }
-        debug_assert_eq!(n, out.len());
     });
     out
+}
+
+/// Support points of the faces along axis `a` in task `task`, into `out`.
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn task_points<T: Scalar, P: Fn(DVec3) -> DVec3>(
+    values: &[T],
+    act: &Activity,
+    faces: &Faces,
+    (a, task): (usize, usize),
+    iso: f64,
+    displace: bool,
+    place: &P,
+    out: &mut [DVec3],
+) {
+    let words = faces.bits[a].len();
+    let (w0, w1) = (
+        task * WORDS_PER_TASK,
+        ((task + 1) * WORDS_PER_TASK).min(words),
+    );
+    let mut rows = Rows::new(&act.grid, w0 * 64);
+    let mut n = 0;
+    for w in w0..w1 {
+        let mut left = faces.bits[a][w];
+        while left != 0 {
+            let q = w * 64 + left.trailing_zeros() as usize;
+            left &= left - 1;
+            let hi = rows.coords(q);
+            out[n] = place(support_point(values, act, a, q, hi, iso, displace));
+            n += 1;
+        }
+    }
+    debug_assert_eq!(n, out.len());
 }
 
 /// Support point of the face on the low side of padded cell `q` (at padded
