@@ -18,7 +18,7 @@ use super::stats::TypeCounts;
 use super::table::{CellEntry, Table};
 use super::{Mode, Scalar};
 use crate::extract::{Decompose, is_degenerate};
-use crate::star::{ambiguous_edges, edge_star, face_axis, face_octants};
+use crate::star::{edge_star, face_axis, face_octants};
 
 /// Marks a triangle corner that refers to a part-local centroid (H mode).
 pub(crate) const CENTROID: u32 = 1 << 31;
@@ -85,6 +85,7 @@ impl<T: Scalar> March<'_, T> {
         let table = Table::get();
         let mut part = Part::default();
         let mut rows = Rows::new(&self.act.grid, w0 * 64);
+        let edge_octants: [[usize; 4]; 6] = std::array::from_fn(|e| edge_star(e).0);
         for w in w0..w1 {
             let q0 = (w * 64) as isize;
             let win = offsets.map(|o| self.act.window(q0 + o as isize));
@@ -102,7 +103,10 @@ impl<T: Scalar> March<'_, T> {
                 let connect = match self.mode {
                     Mode::Disconnect => 0,
                     Mode::Connect => 0x3f,
-                    Mode::Mixed => self.mixed_connect(rows.coords(q), mask),
+                    Mode::Mixed => match table.ambiguous(mask) {
+                        0 => 0,
+                        amb => self.mixed_connect(rows.coords(q), amb, &edge_octants),
+                    },
                 };
                 self.emit(&mut part, table.entry(mask, connect), q, &fc);
             }
@@ -111,21 +115,17 @@ impl<T: Scalar> March<'_, T> {
     }
 
     /// Mixed mode: join at an ambiguous edge iff the mean of its four voxels
-    /// is at least the iso value. `c`: padded coordinates of the octant-0 cell.
-    fn mixed_connect(&self, c: [usize; 3], mask: u8) -> u8 {
-        let amb = ambiguous_edges(mask);
-        if amb == 0 {
-            return 0;
-        }
+    /// is at least the iso value. `c`: padded coordinates of the octant-0
+    /// cell; `amb`: the ambiguous half-edges; `edge_octants`: of each half-edge.
+    fn mixed_connect(&self, c: [usize; 3], amb: u8, edge_octants: &[[usize; 4]; 6]) -> u8 {
         let d = self.act.grid.dims;
         let mut connect = 0;
         for e in 0..6 {
             if amb >> e & 1 == 0 {
                 continue;
             }
-            let (octs, _) = edge_star(e);
             let mut sum = 0.0;
-            for o in octs {
+            for &o in &edge_octants[e] {
                 // cells at an ambiguous edge are never padding (two of them would
                 // have to be active outside cells); treat it as −∞ regardless
                 let [i, j, k] = [c[0] + (o & 1), c[1] + (o >> 1 & 1), c[2] + (o >> 2 & 1)];
