@@ -246,52 +246,47 @@ fn at_least_bits<T: Scalar>(values: &[T], cut: T) -> u64 {
     word
 }
 
-/// Dense ids of the boundary faces.
-pub(crate) struct Faces {
-    /// Bit `t` of word `w`: the face on the low side of cell `64 w + t` along the axis.
-    pub bits: [Vec<u64>; 3],
-    /// Boundary faces in the task's earlier words (tasks of [`WORDS_PER_TASK`]).
-    rank: [Vec<u32>; 3],
+/// Dense ids of the boundary faces. The face bits themselves are not stored:
+/// a word of them is two activity windows XORed, cheaper than the memory a
+/// stored copy would take (three more bits per cell to write and fault in).
+pub(crate) struct Faces<'a> {
+    act: &'a Activity,
+    /// Padded strides, signed for windows before a word.
+    stride: [isize; 3],
+    /// Boundary faces in the task's earlier words (tasks of [`WORDS_PER_TASK`]
+    /// words: at most 1023 · 64 of them, so 16 bits suffice).
+    rank: [Vec<u16>; 3],
     /// Boundary faces of the axis in earlier tasks, one more entry at the end.
     task_base: [Vec<u32>; 3],
     base: [u32; 3],
     pub total: u64,
 }
 
-impl Faces {
-    /// Finds and numbers the boundary faces (word-parallel XOR of shifted
+impl<'a> Faces<'a> {
+    /// Counts and numbers the boundary faces (word-parallel XOR of shifted
     /// activity, all three axes in one sweep; ranks within fixed tasks, so
     /// that only the short list of task totals is summed in sequence).
-    pub fn new(act: &Activity) -> Self {
+    pub fn new(act: &'a Activity) -> Self {
         let words = act.grid.len.div_ceil(64);
         let tasks = words.div_ceil(WORDS_PER_TASK);
-        let mut bits: [Vec<u64>; 3] = std::array::from_fn(|_| vec![0u64; words]);
-        let mut rank: [Vec<u32>; 3] = std::array::from_fn(|_| vec![0u32; words]);
-        let st = act.grid.stride.map(|s| s as isize);
-        let [b0, b1, b2] = &mut bits;
+        let stride = act.grid.stride.map(|s| s as isize);
+        let mut rank: [Vec<u16>; 3] = std::array::from_fn(|_| vec![0u16; words]);
         let [r0, r1, r2] = &mut rank;
         let counts: Vec<[u32; 3]> = (
-            b0.par_chunks_mut(WORDS_PER_TASK),
-            b1.par_chunks_mut(WORDS_PER_TASK),
-            b2.par_chunks_mut(WORDS_PER_TASK),
+            r0.par_chunks_mut(WORDS_PER_TASK),
+            r1.par_chunks_mut(WORDS_PER_TASK),
+            r2.par_chunks_mut(WORDS_PER_TASK),
         )
             .into_par_iter()
-            .zip((
-                r0.par_chunks_mut(WORDS_PER_TASK),
-                r1.par_chunks_mut(WORDS_PER_TASK),
-                r2.par_chunks_mut(WORDS_PER_TASK),
-            ))
             .enumerate()
-            .map(|(task, ((b0, b1, b2), (r0, r1, r2)))| {
+            .map(|(task, (r0, r1, r2))| {
                 let mut acc = [0u32; 3];
-                for k in 0..b0.len() {
+                for k in 0..r0.len() {
                     let q = ((task * WORDS_PER_TASK + k) * 64) as isize;
                     let here = act.window(q);
-                    let w = [0, 1, 2].map(|a| here ^ act.window(q - st[a]));
-                    (b0[k], b1[k], b2[k]) = (w[0], w[1], w[2]);
-                    (r0[k], r1[k], r2[k]) = (acc[0], acc[1], acc[2]);
+                    (r0[k], r1[k], r2[k]) = (acc[0] as u16, acc[1] as u16, acc[2] as u16);
                     for a in 0..3 {
-                        acc[a] += w[a].count_ones();
+                        acc[a] += (here ^ act.window(q - stride[a])).count_ones();
                     }
                 }
                 acc
@@ -312,7 +307,8 @@ impl Faces {
             total += acc;
         }
         Faces {
-            bits,
+            act,
+            stride,
             rank,
             task_base,
             base,
@@ -325,15 +321,28 @@ impl Faces {
         self.task_base[0].len() - 1
     }
 
+    /// Number of words of 64 cells.
+    pub fn words(&self) -> usize {
+        self.rank[0].len()
+    }
+
+    /// Bit `t`: whether the face on the low side of padded cell `64 w + t`
+    /// along `axis` is a boundary face.
+    #[inline]
+    pub fn word(&self, axis: usize, w: usize) -> u64 {
+        let q = (w * 64) as isize;
+        self.act.window(q) ^ self.act.window(q - self.stride[axis])
+    }
+
     /// Id of the boundary face on the low side of padded cell `q` along `axis`.
     #[inline]
     pub fn id(&self, axis: usize, q: usize) -> u32 {
-        let w = self.bits[axis][q >> 6];
+        let w = self.word(axis, q >> 6);
         let below = w & ((1u64 << (q & 63)) - 1);
         debug_assert!(w >> (q & 63) & 1 == 1, "not a boundary face");
         self.base[axis]
             + self.task_base[axis][(q >> 6) / WORDS_PER_TASK]
-            + self.rank[axis][q >> 6]
+            + self.rank[axis][q >> 6] as u32
             + below.count_ones()
     }
 
@@ -392,7 +401,7 @@ fn task_points<T: Scalar, P: Fn(DVec3) -> DVec3>(
     place: &P,
     out: &mut [DVec3],
 ) {
-    let words = faces.bits[a].len();
+    let words = faces.words();
     let (w0, w1) = (
         task * WORDS_PER_TASK,
         ((task + 1) * WORDS_PER_TASK).min(words),
@@ -400,7 +409,7 @@ fn task_points<T: Scalar, P: Fn(DVec3) -> DVec3>(
     let mut rows = Rows::new(&act.grid, w0 * 64);
     let mut n = 0;
     for w in w0..w1 {
-        let mut left = faces.bits[a][w];
+        let mut left = faces.word(a, w);
         while left != 0 {
             let q = w * 64 + left.trailing_zeros() as usize;
             left &= left - 1;

@@ -37,7 +37,7 @@ pub(crate) struct Part {
 pub(crate) struct March<'a, T> {
     pub values: &'a [T],
     pub act: &'a Activity,
-    pub faces: &'a Faces,
+    pub faces: &'a Faces<'a>,
     /// Support points in index space (H mode reads them for the centroids).
     pub points: &'a [DVec3],
     pub iso: f64,
