@@ -347,7 +347,7 @@ impl<'a> Faces<'a> {
     }
 
     /// Number of boundary faces along `axis` in task `task`.
-    fn task_count(&self, axis: usize, task: usize) -> usize {
+    pub fn task_count(&self, axis: usize, task: usize) -> usize {
         (self.task_base[axis][task + 1] - self.task_base[axis][task]) as usize
     }
 }

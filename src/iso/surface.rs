@@ -83,7 +83,15 @@ impl<T: Scalar> March<'_, T> {
         let offsets = self.act.grid.octant_offsets();
         let fc = FaceCells::new(&offsets);
         let table = Table::get();
-        let mut part = Part::default();
+        // a closed surface has about two triangles per point: room for them up
+        // front, instead of growing by copies (untouched room costs nothing)
+        let faces = (0..3)
+            .map(|a| self.faces.task_count(a, w0 / WORDS_PER_TASK))
+            .sum::<usize>();
+        let mut part = Part {
+            tris: Vec::with_capacity(2 * faces + 16),
+            ..Part::default()
+        };
         let mut rows = Rows::new(&self.act.grid, w0 * 64);
         let edge_octants: [[usize; 4]; 6] = std::array::from_fn(|e| edge_star(e).0);
         for w in w0..w1 {
