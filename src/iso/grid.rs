@@ -390,7 +390,6 @@ pub(crate) fn support_points<T: Scalar, P: Fn(DVec3) -> DVec3 + Sync>(
 
 /// Support points of the faces along axis `a` in task `task`, into `out`.
 #[allow(clippy::too_many_arguments)]
-#[inline(never)]
 fn task_points<T: Scalar, P: Fn(DVec3) -> DVec3>(
     values: &[T],
     act: &Activity,

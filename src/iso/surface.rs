@@ -78,7 +78,6 @@ impl<T: Scalar> March<'_, T> {
     }
 
     /// Grid vertices whose octant-0 cell lies in words `w0..w1`.
-    #[inline(never)]
     fn task(&self, w0: usize, w1: usize) -> Part {
         let offsets = self.act.grid.octant_offsets();
         let fc = FaceCells::new(&offsets);
