@@ -9,16 +9,18 @@
 //! - [`Activity`]: one bit per padded cell, "value ≥ iso", behind a guard of
 //!   zero words so that a 64-bit window at any cell offset can be read without
 //!   bounds checks.
-//! - [`Faces`]: one bit per padded cell and axis, "the face on the cell's low
-//!   side along this axis separates an active from an inactive cell", plus
-//!   per-word popcount prefixes: the id of a boundary face is its rank, found
-//!   in O(1). Ids depend only on the volume (axis 0 faces first, then 1, then
-//!   2, each by cell index), never on the thread count.
-//! - [`support_points`]: the point of each boundary face, in index space: the
-//!   face centre, or with displacement the linear interpolation of the iso
-//!   value along the range vector from the active voxel centre to the inactive
-//!   one (VESTA's Fig. 2). Faces on the border of the volume keep their centre
-//!   (the outside has no value).
+//! - [`Faces`]: "the face on a cell's low side along an axis separates an
+//!   active from an inactive cell" — a word of these bits is two activity
+//!   windows XORed, so they are not stored — plus per-word popcount prefixes
+//!   within fixed tasks: the id of a boundary face is its rank, found in
+//!   O(1). Ids depend only on the volume (axis 0 faces first, then 1, then 2,
+//!   each by cell index), never on the thread count.
+//! - [`support_points`]: the point of each boundary face: the face centre, or
+//!   with displacement the linear interpolation of the iso value along the
+//!   range vector from the active voxel centre to the inactive one (VESTA's
+//!   Fig. 2), in index space or mapped on to physical space. Faces on the
+//!   border of the volume keep their centre (the outside has no value).
+//! - [`Rows`]: padded coordinates of increasing indices without divisions.
 
 use glam::DVec3;
 use rayon::prelude::*;

@@ -127,12 +127,12 @@ impl<T: Scalar> March<'_, T> {
     fn mixed_connect(&self, c: [usize; 3], amb: u8, edge_octants: &[[usize; 4]; 6]) -> u8 {
         let d = self.act.grid.dims;
         let mut connect = 0;
-        for e in 0..6 {
+        for (e, octants) in edge_octants.iter().enumerate() {
             if amb >> e & 1 == 0 {
                 continue;
             }
             let mut sum = 0.0;
-            for &o in &edge_octants[e] {
+            for &o in octants {
                 // cells at an ambiguous edge are never padding (two of them would
                 // have to be active outside cells); treat it as −∞ regardless
                 let [i, j, k] = [c[0] + (o & 1), c[1] + (o >> 1 & 1), c[2] + (o >> 2 & 1)];
