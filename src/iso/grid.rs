@@ -9,16 +9,18 @@
 //! - [`Activity`]: one bit per padded cell, "value ≥ iso", behind a guard of
 //!   zero words so that a 64-bit window at any cell offset can be read without
 //!   bounds checks.
-//! - [`Faces`]: one bit per padded cell and axis, "the face on the cell's low
-//!   side along this axis separates an active from an inactive cell", plus
-//!   per-word popcount prefixes: the id of a boundary face is its rank, found
-//!   in O(1). Ids depend only on the volume (axis 0 faces first, then 1, then
-//!   2, each by cell index), never on the thread count.
-//! - [`support_points`]: the point of each boundary face, in index space: the
-//!   face centre, or with displacement the linear interpolation of the iso
-//!   value along the range vector from the active voxel centre to the inactive
-//!   one (VESTA's Fig. 2). Faces on the border of the volume keep their centre
-//!   (the outside has no value).
+//! - [`Faces`]: "the face on a cell's low side along an axis separates an
+//!   active from an inactive cell" — a word of these bits is two activity
+//!   windows XORed, so they are not stored — plus per-word popcount prefixes
+//!   within fixed tasks: the id of a boundary face is its rank, found in
+//!   O(1). Ids depend only on the volume (axis 0 faces first, then 1, then 2,
+//!   each by cell index), never on the thread count.
+//! - [`support_points`]: the point of each boundary face: the face centre, or
+//!   with displacement the linear interpolation of the iso value along the
+//!   range vector from the active voxel centre to the inactive one (VESTA's
+//!   Fig. 2), in index space or mapped on to physical space. Faces on the
+//!   border of the volume keep their centre (the outside has no value).
+//! - [`Rows`]: padded coordinates of increasing indices without divisions.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -62,6 +64,7 @@ impl Padded {
     }
 
     /// Index into the unpadded samples of padded cell coordinates, if interior.
+    #[cfg(test)]
     #[inline]
     pub fn voxel(&self, c: [usize; 3]) -> Option<usize> {
         let d = self.dims;
@@ -75,6 +78,46 @@ impl Padded {
     pub fn octant_offsets(&self) -> [usize; 8] {
         let [sx, sy, sz] = self.stride;
         [0, sx, sy, sx + sy, sz, sz + sx, sz + sy, sz + sy + sx]
+    }
+}
+
+/// Words of 64 cells per parallel task (fixed, so that face ids and the
+/// output never depend on the number of threads).
+pub(crate) const WORDS_PER_TASK: usize = 1024;
+
+/// Coordinates of increasing padded indices without a division per index:
+/// one division at the start, then rows are counted off as `q` passes them.
+pub(crate) struct Rows {
+    p: [usize; 2],
+    row_start: usize,
+    j: usize,
+    k: usize,
+}
+
+impl Rows {
+    /// A cursor at padded index `q`.
+    pub fn new(grid: &Padded, q: usize) -> Self {
+        let [i, j, k] = grid.coords(q);
+        Rows {
+            p: [grid.p[0], grid.p[1]],
+            row_start: q - i,
+            j,
+            k,
+        }
+    }
+
+    /// Padded cell coordinates of `q`, which must not be before the last `q`.
+    #[inline]
+    pub fn coords(&mut self, q: usize) -> [usize; 3] {
+        while q >= self.row_start + self.p[0] {
+            self.row_start += self.p[0];
+            self.j += 1;
+            if self.j == self.p[1] {
+                self.j = 0;
+                self.k += 1;
+            }
+        }
+        [q - self.row_start, self.j, self.k]
     }
 }
 
@@ -95,15 +138,25 @@ impl Activity {
         let cell_words = grid.len.div_ceil(64);
         let tail_words = guard_words + 2;
         let mut bits = vec![0u64; guard_words + cell_words + tail_words];
-        bits[guard_words..guard_words + cell_words]
-            .par_chunks_mut(1024)
-            .enumerate()
-            .for_each(|(chunk, words)| {
-                for (k, word) in words.iter_mut().enumerate() {
-                    *word = active_word(values, &grid, (chunk * 1024 + k) * 64, iso);
-                }
-            });
-        let active = bits.par_iter().map(|w| w.count_ones() as u64).sum();
+        // no sample reaches the iso value: nothing is active
+        let active = if let Some(cut) = T::cut(iso) {
+            bits[guard_words..guard_words + cell_words]
+                .par_chunks_mut(WORDS_PER_TASK)
+                .enumerate()
+                .map(|(chunk, words)| {
+                    let start = chunk * WORDS_PER_TASK * 64;
+                    let mut at = grid.coords(start.min(grid.len - 1));
+                    let mut n = 0;
+                    for (k, word) in words.iter_mut().enumerate() {
+                        *word = active_word(values, &grid, start + k * 64, &mut at, cut);
+                        n += word.count_ones() as u64;
+                    }
+                    n
+                })
+                .sum()
+        } else {
+            0
+        };
         Activity {
             grid,
             guard: guard_words * 64,
@@ -133,13 +186,20 @@ impl Activity {
     }
 }
 
-/// Activity bits of padded cells `start .. start + 64`.
-fn active_word<T: Scalar>(values: &[T], grid: &Padded, start: usize, iso: f64) -> u64 {
+/// Activity bits of padded cells `start .. start + 64`; `at` holds the
+/// coordinates of `start` and is advanced past the word.
+fn active_word<T: Scalar>(
+    values: &[T],
+    grid: &Padded,
+    start: usize,
+    at: &mut [usize; 3],
+    cut: T,
+) -> u64 {
     let mut word = 0u64;
     if start >= grid.len {
         return word;
     }
-    let [mut i, mut j, mut k] = grid.coords(start);
+    let [mut i, mut j, mut k] = *at;
     let d = grid.dims;
     let end = (start + 64).min(grid.len);
     let mut t = 0;
@@ -152,12 +212,7 @@ fn active_word<T: Scalar>(values: &[T], grid: &Padded, start: usize, iso: f64) -
             let hi = (i + run).min(d.nx + 1);
             if lo < hi {
                 let row = d.nx * ((j - 1) + d.ny * (k - 1));
-                // branch-free, so that the comparison vectorizes
-                let mut run_bits = 0u64;
-                for (x, v) in values[row + lo - 1..row + hi - 1].iter().enumerate() {
-                    run_bits |= ((v.to_f64() >= iso) as u64) << x;
-                }
-                word |= run_bits << (t + lo - i);
+                word |= at_least_bits(&values[row + lo - 1..row + hi - 1], cut) << (t + lo - i);
             }
         }
         t += run;
@@ -171,113 +226,214 @@ fn active_word<T: Scalar>(values: &[T], grid: &Padded, start: usize, iso: f64) -
             }
         }
     }
+    *at = [i, j, k];
     word
 }
 
-/// Dense ids of the boundary faces.
-pub(crate) struct Faces {
-    /// Bit `t` of word `w`: the face on the low side of cell `64 w + t` along the axis.
-    pub bits: [Vec<u64>; 3],
-    rank: [Vec<u32>; 3],
+/// Bit `x`: `values[x] >= cut`, for at most 64 values. The comparisons go to
+/// bytes first (a vectorizable loop), then eight bytes at a time into bits
+/// with one multiplication.
+#[inline]
+fn at_least_bits<T: Scalar>(values: &[T], cut: T) -> u64 {
+    let mut bytes = [0u8; 64];
+    for (b, v) in bytes.iter_mut().zip(values) {
+        *b = (*v >= cut) as u8;
+    }
+    let mut word = 0u64;
+    for (k, eight) in bytes.chunks_exact(8).enumerate() {
+        let x = u64::from_le_bytes(eight.try_into().expect("eight bytes"));
+        // byte b (0 or 1) lands on bit 56 + b; no two products overlap there
+        word |= (x.wrapping_mul(0x0102_0408_1020_4080) >> 56) << (8 * k);
+    }
+    word
+}
+
+/// Dense ids of the boundary faces. The face bits themselves are not stored:
+/// a word of them is two activity windows XORed, cheaper than the memory a
+/// stored copy would take (three more bits per cell to write and fault in).
+pub(crate) struct Faces<'a> {
+    act: &'a Activity,
+    /// Padded strides, signed for windows before a word.
+    stride: [isize; 3],
+    /// Boundary faces in the task's earlier words (tasks of [`WORDS_PER_TASK`]
+    /// words: at most 1023 · 64 of them, so 16 bits suffice).
+    rank: [Vec<u16>; 3],
+    /// Boundary faces of the axis in earlier tasks, one more entry at the end.
+    task_base: [Vec<u32>; 3],
     base: [u32; 3],
     pub total: u64,
 }
 
-impl Faces {
-    /// Finds and numbers the boundary faces (word-parallel XOR of shifted activity).
-    pub fn new(act: &Activity) -> Self {
+impl<'a> Faces<'a> {
+    /// Counts and numbers the boundary faces (word-parallel XOR of shifted
+    /// activity, all three axes in one sweep; ranks within fixed tasks, so
+    /// that only the short list of task totals is summed in sequence).
+    pub fn new(act: &'a Activity) -> Self {
         let words = act.grid.len.div_ceil(64);
-        let mut bits: [Vec<u64>; 3] = Default::default();
-        let mut rank: [Vec<u32>; 3] = Default::default();
+        let tasks = words.div_ceil(WORDS_PER_TASK);
+        let stride = act.grid.stride.map(|s| s as isize);
+        let mut rank: [Vec<u16>; 3] = std::array::from_fn(|_| vec![0u16; words]);
+        let [r0, r1, r2] = &mut rank;
+        let counts: Vec<[u32; 3]> = (
+            r0.par_chunks_mut(WORDS_PER_TASK),
+            r1.par_chunks_mut(WORDS_PER_TASK),
+            r2.par_chunks_mut(WORDS_PER_TASK),
+        )
+            .into_par_iter()
+            .enumerate()
+            .map(|(task, (r0, r1, r2))| {
+                let mut acc = [0u32; 3];
+                for k in 0..r0.len() {
+                    let q = ((task * WORDS_PER_TASK + k) * 64) as isize;
+                    let here = act.window(q);
+                    (r0[k], r1[k], r2[k]) = (acc[0] as u16, acc[1] as u16, acc[2] as u16);
+                    for a in 0..3 {
+                        acc[a] += (here ^ act.window(q - stride[a])).count_ones();
+                    }
+                }
+                acc
+            })
+            .collect();
+        let mut task_base: [Vec<u32>; 3] = Default::default();
         let mut base = [0u32; 3];
         let mut total = 0u64;
         for a in 0..3 {
-            let st = act.grid.stride[a] as isize;
-            bits[a] = (0..words)
-                .into_par_iter()
-                .map(|w| {
-                    let q = (w * 64) as isize;
-                    act.window(q) ^ act.window(q - st)
-                })
-                .collect();
             let mut acc = 0u64;
-            rank[a] = bits[a]
-                .iter()
-                .map(|w| {
-                    let r = acc as u32;
-                    acc += w.count_ones() as u64;
-                    r
-                })
-                .collect();
+            task_base[a] = Vec::with_capacity(tasks + 1);
+            for c in &counts {
+                task_base[a].push(acc.min(u32::MAX as u64) as u32);
+                acc += c[a] as u64;
+            }
+            task_base[a].push(acc.min(u32::MAX as u64) as u32);
             base[a] = total.min(u32::MAX as u64) as u32;
             total += acc;
         }
         Faces {
-            bits,
+            act,
+            stride,
             rank,
+            task_base,
             base,
             total,
         }
     }
 
+    /// Number of parallel tasks (of [`WORDS_PER_TASK`] words).
+    pub fn tasks(&self) -> usize {
+        self.task_base[0].len() - 1
+    }
+
+    /// Number of words of 64 cells.
+    pub fn words(&self) -> usize {
+        self.rank[0].len()
+    }
+
+    /// Bit `t`: whether the face on the low side of padded cell `64 w + t`
+    /// along `axis` is a boundary face.
+    #[inline]
+    pub fn word(&self, axis: usize, w: usize) -> u64 {
+        let q = (w * 64) as isize;
+        self.act.window(q) ^ self.act.window(q - self.stride[axis])
+    }
+
     /// Id of the boundary face on the low side of padded cell `q` along `axis`.
     #[inline]
     pub fn id(&self, axis: usize, q: usize) -> u32 {
-        let w = self.bits[axis][q >> 6];
+        let w = self.word(axis, q >> 6);
         let below = w & ((1u64 << (q & 63)) - 1);
         debug_assert!(w >> (q & 63) & 1 == 1, "not a boundary face");
-        self.base[axis] + self.rank[axis][q >> 6] + below.count_ones()
+        self.base[axis]
+            + self.task_base[axis][(q >> 6) / WORDS_PER_TASK]
+            + self.rank[axis][q >> 6] as u32
+            + below.count_ones()
+    }
+
+    /// Number of boundary faces along `axis` in task `task`.
+    pub fn task_count(&self, axis: usize, task: usize) -> usize {
+        (self.task_base[axis][task + 1] - self.task_base[axis][task]) as usize
     }
 }
 
-/// Support points of all boundary faces in id order, in index space (voxel
-/// centres at integer coordinates).
-pub(crate) fn support_points<T: Scalar>(
+/// Support points of all boundary faces in id order, each passed through
+/// `place` (index space → output space; voxel centres at integer
+/// coordinates). Written straight into the output, in parallel over (axis,
+/// task) ranges whose place in the output the face ranks give.
+pub(crate) fn support_points<T: Scalar, P: Fn(DVec3) -> DVec3 + Sync>(
     values: &[T],
     act: &Activity,
     faces: &Faces,
     iso: f64,
     displace: bool,
+    place: P,
 ) -> Vec<DVec3> {
-    let mut out = Vec::with_capacity(faces.total as usize);
+    let mut out = vec![DVec3::ZERO; faces.total as usize];
+    // one task does the three axes of its cells, so that the samples it
+    // reads are still in cache for the second and third axis
+    let mut ranges: Vec<[&mut [DVec3]; 3]> = Vec::with_capacity(faces.tasks());
+    let mut rest: &mut [DVec3] = &mut out;
     for a in 0..3 {
-        let parts: Vec<Vec<DVec3>> = faces.bits[a]
-            .par_chunks(1024)
-            .enumerate()
-            .map(|(chunk, words)| {
-                let mut v = Vec::new();
-                for (k, &word) in words.iter().enumerate() {
-                    let mut left = word;
-                    while left != 0 {
-                        let t = left.trailing_zeros() as usize;
-                        left &= left - 1;
-                        let q = (chunk * 1024 + k) * 64 + t;
-                        v.push(support_point(values, act, a, q, iso, displace));
-                    }
-                }
-                v
-            })
-            .collect();
-        for p in parts {
-            out.extend(p);
+        for task in 0..faces.tasks() {
+            let (head, tail) = rest.split_at_mut(faces.task_count(a, task));
+            if a == 0 {
+                ranges.push([head, &mut [], &mut []]);
+            } else {
+                ranges[task][a] = head;
+            }
+            rest = tail;
         }
     }
+    ranges.into_par_iter().enumerate().for_each(|(task, outs)| {
+        for (a, out) in outs.into_iter().enumerate() {
+            task_points(values, act, faces, (a, task), iso, displace, &place, out);
+        }
+    });
     out
 }
 
-/// Support point of the face on the low side of padded cell `q` along `axis`.
+/// Support points of the faces along axis `a` in task `task`, into `out`.
+#[allow(clippy::too_many_arguments)]
+fn task_points<T: Scalar, P: Fn(DVec3) -> DVec3>(
+    values: &[T],
+    act: &Activity,
+    faces: &Faces,
+    (a, task): (usize, usize),
+    iso: f64,
+    displace: bool,
+    place: &P,
+    out: &mut [DVec3],
+) {
+    let words = faces.words();
+    let (w0, w1) = (
+        task * WORDS_PER_TASK,
+        ((task + 1) * WORDS_PER_TASK).min(words),
+    );
+    let mut rows = Rows::new(&act.grid, w0 * 64);
+    let mut n = 0;
+    for w in w0..w1 {
+        let mut left = faces.word(a, w);
+        while left != 0 {
+            let q = w * 64 + left.trailing_zeros() as usize;
+            left &= left - 1;
+            let hi = rows.coords(q);
+            out[n] = place(support_point(values, act, a, q, hi, iso, displace));
+            n += 1;
+        }
+    }
+    debug_assert_eq!(n, out.len());
+}
+
+/// Support point of the face on the low side of padded cell `q` (at padded
+/// coordinates `hi`) along `axis`, in index space.
+#[inline]
 fn support_point<T: Scalar>(
     values: &[T],
     act: &Activity,
     axis: usize,
     q: usize,
+    hi: [usize; 3],
     iso: f64,
     displace: bool,
 ) -> DVec3 {
-    let g = &act.grid;
-    let hi = g.coords(q);
-    let mut lo = hi;
-    lo[axis] -= 1;
     // index space of the high cell's voxel; the face centre is half a voxel below
     let centre = DVec3::new(hi[0] as f64 - 1.0, hi[1] as f64 - 1.0, hi[2] as f64 - 1.0);
     let mut p = centre;
@@ -285,9 +441,17 @@ fn support_point<T: Scalar>(
     if !displace {
         return p;
     }
-    let (Some(vh), Some(vl)) = (g.voxel(hi), g.voxel(lo)) else {
+    // both cells must be voxels: the high one inside, the low one too
+    let d = act.grid.dims;
+    let inside = (1..=d.nx).contains(&hi[0])
+        && (1..=d.ny).contains(&hi[1])
+        && (1..=d.nz).contains(&hi[2])
+        && hi[axis] >= 2;
+    if !inside {
         return p;
-    };
+    }
+    let vh = (hi[0] - 1) + d.nx * ((hi[1] - 1) + d.ny * (hi[2] - 1));
+    let vl = vh - [1, d.nx, d.nx * d.ny][axis];
     let (vh, vl) = (values[vh].to_f64(), values[vl].to_f64());
     let hi_active = act.get(q);
     let (va, vi) = if hi_active { (vh, vl) } else { (vl, vh) };
@@ -360,8 +524,85 @@ mod tests {
             }
         }
         assert_eq!(faces.total, expect as u64);
-        let pts = support_points(&values, &act, &faces, 1.0, false);
+        let pts = support_points(&values, &act, &faces, 1.0, false, |p| p);
         assert_eq!(pts.len(), expect as usize);
+    }
+
+    #[test]
+    fn comparison_bits_pack_every_pattern() {
+        for pattern in 0..=255u64 {
+            for shift in [0, 8, 56] {
+                let word = pattern << shift;
+                let values: Vec<i16> = (0..64).map(|x| (word >> x & 1) as i16 * 7).collect();
+                assert_eq!(at_least_bits(&values, 5), word);
+                assert_eq!(
+                    at_least_bits(&values[..shift + 3], 5),
+                    word & ((1 << (shift + 3)) - 1)
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn cuts_agree_with_comparing_as_f64() {
+        fn check<T: Scalar>(values: &[T], isos: &[f64]) {
+            for &iso in isos {
+                let cut = T::cut(iso);
+                for &v in values {
+                    let expect = v.to_f64() >= iso;
+                    assert_eq!(
+                        cut.is_some_and(|c| v >= c),
+                        expect,
+                        "{} vs {iso}",
+                        v.to_f64()
+                    );
+                }
+            }
+        }
+        let isos = [
+            -1e300,
+            -129.0,
+            -128.5,
+            -128.0,
+            -0.5,
+            0.0,
+            0.25,
+            1.0,
+            127.0,
+            127.5,
+            200.0,
+            255.5,
+            256.0,
+            1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        check(&(i8::MIN..=i8::MAX).collect::<Vec<_>>(), &isos);
+        check(&(u8::MIN..=u8::MAX).collect::<Vec<_>>(), &isos);
+        let big = 2f64.powi(60);
+        let around: Vec<i64> = (-3000..3000).map(|d| (1i64 << 60) + d).collect();
+        check(&around, &[big, big + 256.0, big - 256.0, big - 1.0, 9.3e18]);
+        let around: Vec<u64> = (0..3000).map(|d| u64::MAX - d).collect();
+        check(&around, &[2f64.powi(64), 2f64.powi(64) - 2048.0, 1.8e19]);
+        let floats = [
+            f32::NEG_INFINITY,
+            -f32::MAX,
+            -1.0,
+            -0.0,
+            0.0,
+            1e-45,
+            0.1,
+            0.2,
+            1.0,
+            f32::MAX,
+            f32::INFINITY,
+            f32::NAN,
+        ];
+        check(
+            &floats,
+            &[0.1, 0.2, -0.1, 1e-300, 0.0, -1e300, 1e300, f64::INFINITY],
+        );
+        check(&[f64::NAN, 0.1, 0.2, -5.0], &[0.1, 0.15, f64::NEG_INFINITY]);
     }
 
     #[test]

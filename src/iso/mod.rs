@@ -141,21 +141,78 @@ pub struct IsoSurface {
 }
 
 /// Sample types the iso commands accept.
-pub trait Scalar: Copy + Send + Sync {
+pub trait Scalar: Copy + Send + Sync + PartialOrd {
     fn to_f64(self) -> f64;
+
+    /// The smallest value `c` of the type with `c.to_f64() >= iso` (`None` if
+    /// there is none), so that `v >= c` ⇔ `v.to_f64() >= iso` for every `v`:
+    /// the activity pass compares in the samples' own type, which vectorizes.
+    fn cut(iso: f64) -> Option<Self>;
 }
 
-macro_rules! scalar {
+macro_rules! scalar_int {
     ($($t:ty),*) => {$(
         impl Scalar for $t {
             #[inline]
             fn to_f64(self) -> f64 {
                 self as f64
             }
+
+            fn cut(iso: f64) -> Option<Self> {
+                if iso <= <$t>::MIN as f64 {
+                    return Some(<$t>::MIN);
+                }
+                if iso.is_nan() || iso > <$t>::MAX as f64 {
+                    return None;
+                }
+                // ceil(iso) is exact below 2^64 (saturating at MAX); step down
+                // where 64-bit values round up to iso
+                let mut c = iso.ceil() as $t;
+                while c > <$t>::MIN && ((c - 1) as f64) >= iso {
+                    c -= 1;
+                }
+                Some(c)
+            }
         }
     )*};
 }
-scalar!(u8, i8, u16, i16, u32, i32, u64, i64, f32, f64);
+scalar_int!(u8, i8, u16, i16, u32, i32, u64, i64);
+
+impl Scalar for f64 {
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self
+    }
+
+    fn cut(iso: f64) -> Option<Self> {
+        (!iso.is_nan()).then_some(iso)
+    }
+}
+
+impl Scalar for f32 {
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self as f64
+    }
+
+    fn cut(iso: f64) -> Option<Self> {
+        if iso.is_nan() {
+            return None;
+        }
+        // round to nearest, then up to the next f32 if that fell below iso
+        let c = iso as f32;
+        if (c as f64) >= iso {
+            return Some(c);
+        }
+        Some(if c == 0.0 {
+            f32::from_bits(1)
+        } else if c > 0.0 {
+            f32::from_bits(c.to_bits() + 1)
+        } else {
+            f32::from_bits(c.to_bits() - 1)
+        })
+    }
+}
 
 /// The VESTA iso-surface of a volume: samples x fastest, `geometry` maps voxel
 /// indices to LPS millimetres. Deterministic for any number of threads.
@@ -176,7 +233,10 @@ pub fn iso_surface<T: Scalar>(
             dims.nz
         )));
     }
-    let act = grid::Activity::new(values, dims, opts.iso);
+    // the table (built once per process) is independent of the volume
+    let (_, act) = rayon::join(table::Table::get, || {
+        grid::Activity::new(values, dims, opts.iso)
+    });
     let faces = grid::Faces::new(&act);
     if faces.total >= surface::CENTROID as u64 {
         return Err(Error::invalid(format!(
@@ -184,7 +244,15 @@ pub fn iso_surface<T: Scalar>(
             faces.total
         )));
     }
-    let points = grid::support_points(values, &act, &faces, opts.iso, opts.displace);
+    // L reads no point back: place them in physical space at once; H
+    // averages them in index space first
+    let physical = opts.decompose == Decompose::L;
+    let points = if physical {
+        let place = |p| geometry.index_to_physical(p);
+        grid::support_points(values, &act, &faces, opts.iso, opts.displace, place)
+    } else {
+        grid::support_points(values, &act, &faces, opts.iso, opts.displace, |p| p)
+    };
     let march = surface::March {
         values,
         act: &act,
@@ -195,7 +263,7 @@ pub fn iso_surface<T: Scalar>(
         decompose: opts.decompose,
     };
     let parts = march.run();
-    let mut s = assemble(points, parts, geometry, act.active);
+    let mut s = assemble(points, physical, parts, geometry, act.active);
     s.stats.seconds = start.elapsed().as_secs_f64();
     Ok(s)
 }
@@ -237,9 +305,11 @@ pub fn iso_labels() -> Vec<LabelInfo> {
     ]
 }
 
-/// Merges the parts into one mesh in physical space.
+/// Merges the parts into one mesh in physical space (`physical`: the points
+/// are there already, and there are no centroids).
 fn assemble(
     mut points: Vec<DVec3>,
+    physical: bool,
     parts: Vec<surface::Part>,
     geometry: Geometry,
     active: u64,
@@ -283,10 +353,15 @@ fn assemble(
     for p in &parts {
         points.extend_from_slice(&p.centroids);
     }
-    let positions: Vec<DVec3> = points
-        .par_iter()
-        .map(|&p| geometry.index_to_physical(p))
-        .collect();
+    let positions: Vec<DVec3> = if physical {
+        debug_assert_eq!(n_centroids, 0);
+        points
+    } else {
+        points
+            .par_iter()
+            .map(|&p| geometry.index_to_physical(p))
+            .collect()
+    };
     let mut stats = IsoStats::from_counts(&counts);
     stats.active_voxels = active;
     stats.support_points = n_faces as usize;

@@ -13,19 +13,15 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::grid::{Activity, Faces};
+use super::grid::{Activity, Faces, Rows, WORDS_PER_TASK};
 use super::stats::TypeCounts;
 use super::table::{CellEntry, Table};
 use super::{Mode, Scalar};
 use crate::extract::{Decompose, is_degenerate};
-use crate::star::{ambiguous_edges, edge_star, face_axis, face_octants};
+use crate::star::{edge_star, face_axis, face_octants};
 
 /// Marks a triangle corner that refers to a part-local centroid (H mode).
 pub(crate) const CENTROID: u32 = 1 << 31;
-
-/// Grid-vertex words per parallel task (fixed, so the output never depends
-/// on the number of threads).
-const WORDS_PER_TASK: usize = 1024;
 
 /// Output of one task.
 #[derive(Default)]
@@ -41,7 +37,7 @@ pub(crate) struct Part {
 pub(crate) struct March<'a, T> {
     pub values: &'a [T],
     pub act: &'a Activity,
-    pub faces: &'a Faces,
+    pub faces: &'a Faces<'a>,
     /// Support points in index space (H mode reads them for the centroids).
     pub points: &'a [DVec3],
     pub iso: f64,
@@ -86,7 +82,17 @@ impl<T: Scalar> March<'_, T> {
         let offsets = self.act.grid.octant_offsets();
         let fc = FaceCells::new(&offsets);
         let table = Table::get();
-        let mut part = Part::default();
+        // a closed surface has about two triangles per point: room for them up
+        // front, instead of growing by copies (untouched room costs nothing)
+        let faces = (0..3)
+            .map(|a| self.faces.task_count(a, w0 / WORDS_PER_TASK))
+            .sum::<usize>();
+        let mut part = Part {
+            tris: Vec::with_capacity(2 * faces + 16),
+            ..Part::default()
+        };
+        let mut rows = Rows::new(&self.act.grid, w0 * 64);
+        let edge_octants: [[usize; 4]; 6] = std::array::from_fn(|e| edge_star(e).0);
         for w in w0..w1 {
             let q0 = (w * 64) as isize;
             let win = offsets.map(|o| self.act.window(q0 + o as isize));
@@ -104,7 +110,10 @@ impl<T: Scalar> March<'_, T> {
                 let connect = match self.mode {
                     Mode::Disconnect => 0,
                     Mode::Connect => 0x3f,
-                    Mode::Mixed => self.mixed_connect(q, mask, &offsets),
+                    Mode::Mixed => match table.ambiguous(mask) {
+                        0 => 0,
+                        amb => self.mixed_connect(rows.coords(q), amb, &edge_octants),
+                    },
                 };
                 self.emit(&mut part, table.entry(mask, connect), q, &fc);
             }
@@ -113,26 +122,26 @@ impl<T: Scalar> March<'_, T> {
     }
 
     /// Mixed mode: join at an ambiguous edge iff the mean of its four voxels
-    /// is at least the iso value.
-    fn mixed_connect(&self, q: usize, mask: u8, offsets: &[usize; 8]) -> u8 {
-        let amb = ambiguous_edges(mask);
-        if amb == 0 {
-            return 0;
-        }
-        let g = &self.act.grid;
+    /// is at least the iso value. `c`: padded coordinates of the octant-0
+    /// cell; `amb`: the ambiguous half-edges; `edge_octants`: of each half-edge.
+    fn mixed_connect(&self, c: [usize; 3], amb: u8, edge_octants: &[[usize; 4]; 6]) -> u8 {
+        let d = self.act.grid.dims;
         let mut connect = 0;
-        for e in 0..6 {
+        for (e, octants) in edge_octants.iter().enumerate() {
             if amb >> e & 1 == 0 {
                 continue;
             }
-            let (octs, _) = edge_star(e);
             let mut sum = 0.0;
-            for o in octs {
+            for &o in octants {
                 // cells at an ambiguous edge are never padding (two of them would
                 // have to be active outside cells); treat it as −∞ regardless
-                sum += match g.voxel(g.coords(q + offsets[o])) {
-                    Some(v) => self.values[v].to_f64(),
-                    None => f64::NEG_INFINITY,
+                let [i, j, k] = [c[0] + (o & 1), c[1] + (o >> 1 & 1), c[2] + (o >> 2 & 1)];
+                let inside =
+                    (1..=d.nx).contains(&i) && (1..=d.ny).contains(&j) && (1..=d.nz).contains(&k);
+                sum += if inside {
+                    self.values[(i - 1) + d.nx * ((j - 1) + d.ny * (k - 1))].to_f64()
+                } else {
+                    f64::NEG_INFINITY
                 };
             }
             if sum / 4.0 >= self.iso {

@@ -129,6 +129,8 @@ pub struct CycleType {
 pub(crate) struct Table {
     entries: Vec<CellEntry>,
     types: Vec<CycleType>,
+    /// [`ambiguous_edges`] of every mask (the march asks for each vertex).
+    ambiguous: [u8; 256],
 }
 
 impl Table {
@@ -146,6 +148,12 @@ impl Table {
 
     pub(crate) fn types(&self) -> &[CycleType] {
         &self.types
+    }
+
+    /// The ambiguous half-edges of a mask, as [`ambiguous_edges`].
+    #[inline]
+    pub(crate) fn ambiguous(&self, mask: u8) -> u8 {
+        self.ambiguous[mask as usize]
     }
 }
 
@@ -512,7 +520,12 @@ fn build() -> Table {
             canonical_entries[(mask as usize) << 6 | connect as usize]
         })
         .collect();
-    Table { entries, types }
+    let ambiguous = std::array::from_fn(|m| ambiguous_edges(m as u8));
+    Table {
+        entries,
+        types,
+        ambiguous,
+    }
 }
 
 /// Every mask with every joining set of its ambiguous edges, traced.
