@@ -117,9 +117,12 @@ const REPAIR_ROUNDS: usize = 20;
 /// smoothed reference: keeps chords from cutting across thin structures.
 const FIT_VOXELS: f64 = 0.3;
 
-/// Islands (closed components without junctions) at most this many target
-/// edges long are kept as extracted (see [`network::Network::mark_islands`]).
-const ISLAND_TARGETS: f64 = 4.0;
+/// Islands (closed components without junctions) of at most this many
+/// voxels, or at most [`ISLAND_TARGETS`] target edges long, are kept as
+/// extracted (see [`network::Network::mark_islands`]).
+const ISLAND_VOXELS: f64 = 27.0;
+/// See [`ISLAND_VOXELS`].
+const ISLAND_TARGETS: f64 = 2.0;
 
 /// Smooths and remeshes all patches of `mesh`.
 pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
@@ -127,7 +130,7 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
     let mut timings = RemeshTimings::default();
     let clock = std::time::Instant::now();
     let mut net = network::Network::new(mesh);
-    net.mark_islands(mesh, ISLAND_TARGETS * params.target_edge);
+    net.mark_islands(mesh, ISLAND_VOXELS, ISLAND_TARGETS * params.target_edge);
     let smoothed_pos = smooth::smooth(
         mesh,
         &net,

@@ -65,14 +65,15 @@ impl Network {
         )
     }
 
-    /// Marks the vertices of islands no longer than `extent` (mm) along each
-    /// axis as [`VertexKind::Island`]: closed components of the mesh without
-    /// junction vertices. Smoothing would shrink such a component toward a
-    /// point or a needle (they are all high frequency), and remeshing to edges
-    /// as long as the island itself could only give a tetrahedron, which
-    /// collapses can turn inside out; so they keep their extracted shape.
-    /// Returns the number of islands marked.
-    pub fn mark_islands(&mut self, mesh: &InterfaceMesh, extent: f64) -> usize {
+    /// Marks the vertices of small islands as [`VertexKind::Island`]:
+    /// closed components of the mesh without junction vertices that enclose
+    /// at most `max_voxels` voxels or are no longer than `extent` (mm) along
+    /// every axis. Smoothing shrinks such a component toward a point or a
+    /// needle (it is all high frequency), and remeshing it to edges about as
+    /// long as the island itself can only give a tetrahedron, which collapses
+    /// can turn inside out; so they keep their extracted shape. Returns the
+    /// number of islands marked.
+    pub fn mark_islands(&mut self, mesh: &InterfaceMesh, max_voxels: f64, extent: f64) -> usize {
         let n = mesh.vertex_count();
         let mut parent: Vec<u32> = (0..n as u32).collect();
         fn find(parent: &mut [u32], mut v: u32) -> u32 {
@@ -102,8 +103,19 @@ impl Network {
             lo[r] = lo[r].min(mesh.positions[v as usize]);
             hi[r] = hi[r].max(mesh.positions[v as usize]);
         }
+        // enclosed volume per component (about its box corner, for precision)
+        let mut volume = vec![0.0f64; n];
+        for t in &mesh.triangles {
+            let r = roots[t[0] as usize] as usize;
+            let [a, b, c] = t.map(|v| mesh.positions[v as usize] - lo[r]);
+            volume[r] += a.dot(b.cross(c)) / 6.0;
+        }
+        let voxel = mesh.geometry.linear_matrix().determinant().abs();
         let small = |r: usize| {
-            !junction[r] && lo[r].x <= hi[r].x && (hi[r] - lo[r]).max_element() <= extent
+            !junction[r]
+                && lo[r].x <= hi[r].x
+                && (volume[r].abs() <= max_voxels * voxel
+                    || (hi[r] - lo[r]).max_element() <= extent)
         };
         let mut islands = 0;
         for v in 0..n {
