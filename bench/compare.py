@@ -5,7 +5,7 @@ Run from anywhere (Python >= 3.10; it was written for 3.11):
 
     python3 bench/compare.py                      # 256^3 and 512^3, clean and --noise 0.01
     python3 bench/compare.py --sizes 256 --repeats 1
-    python3 bench/compare.py --iso                # septa iso vs scikit-image and VTK flying edges
+    python3 bench/compare.py --iso                # septa iso (cold and warm) vs scikit-image and VTK flying edges
     python3 bench/compare.py --remesh             # septa extract (remeshed) vs VTK surface nets + pymeshlab
 
 On its first run it creates bench/.venv and pip-installs bench/requirements.txt

@@ -234,6 +234,97 @@ fn iso_bad_input_gets_clear_errors() {
     assert!(o.status.success() && err.contains("empty"), "{err}");
 }
 
+#[test]
+fn iso_repeat_writes_the_same_file_and_reports_both_times() {
+    let dir = tmp();
+    let (v, d) = bumps();
+    let vol = dir.path().join("bumps.mha");
+    write_mha(&vol, d, &v);
+    let run = |n: &str, out: &str| {
+        json(&ok(septa(
+            &[
+                "iso",
+                p(&vol),
+                "--iso",
+                "40",
+                "-o",
+                out,
+                "--repeat",
+                n,
+                "--json",
+                "-q",
+            ],
+            dir.path(),
+        )))
+    };
+    let j1 = run("1", "r1.ply");
+    let j3 = run("3", "r3.ply");
+    let b1 = std::fs::read(dir.path().join("r1.ply")).unwrap();
+    let b3 = std::fs::read(dir.path().join("r3.ply")).unwrap();
+    assert!(b1.len() > 100);
+    assert!(b1 == b3, "--repeat 3 wrote other bytes than --repeat 1");
+    assert_eq!(j1["repeat"], 1);
+    assert_eq!(j3["repeat"], 3);
+    for k in [
+        "points",
+        "triangles",
+        "cycles",
+        "cycle_types",
+        "active_voxels",
+    ] {
+        assert_eq!(j1[k], j3[k], "{k}");
+    }
+    for j in [&j1, &j3] {
+        let t = &j["timings_s"];
+        let f = |k: &str| {
+            t[k].as_f64()
+                .unwrap_or_else(|| panic!("timings_s.{k} missing: {t}"))
+        };
+        // the best is never slower than the first
+        assert!(f("extract") <= f("extract_first"), "{t}");
+        assert!(f("extract_internal") <= f("extract_internal_first"), "{t}");
+        assert!(f("extract_internal") > 0.0, "{t}");
+    }
+    // one run: the best is the first
+    let t = &j1["timings_s"];
+    assert_eq!(t["extract"], t["extract_first"]);
+    assert_eq!(t["extract_internal"], t["extract_internal_first"]);
+    // the text summary says so
+    let txt = ok(septa(
+        &[
+            "iso",
+            p(&vol),
+            "--iso",
+            "40",
+            "-o",
+            "r.ply",
+            "--repeat",
+            "2",
+        ],
+        dir.path(),
+    ));
+    assert!(txt.contains("fastest of 2"), "{txt}");
+    // at least one run
+    for bad in ["0", "-1", "x"] {
+        fails(
+            septa(
+                &[
+                    "iso",
+                    p(&vol),
+                    "--iso",
+                    "40",
+                    "-o",
+                    "r0.ply",
+                    &format!("--repeat={bad}"),
+                ],
+                dir.path(),
+            ),
+            &["--repeat"],
+        );
+    }
+    assert!(!dir.path().join("r0.ply").exists());
+}
+
 // ───────────────────────────── septa contour ─────────────────────────────
 
 /// A 9 × 7 gray image: a ring, a lone pixel, and two pixels touching at a corner.
