@@ -1238,6 +1238,17 @@ fn extract_remeshes_by_default() {
     let extraction = m["extraction"]["triangles"].as_u64().unwrap();
     let triangles = m["triangles"].as_u64().unwrap();
     assert!(triangles * 5 < extraction, "{triangles} vs {extraction}");
+    // the remesh stage's steps add up to no more than the stage
+    let steps = &m["remesh_steps_s"];
+    let sum: f64 = ["smooth", "setup", "curves", "patches", "repair"]
+        .iter()
+        .map(|k| {
+            steps[k]
+                .as_f64()
+                .unwrap_or_else(|| panic!("{k} in {steps}"))
+        })
+        .sum();
+    assert!(sum <= m["timings_s"]["remesh"].as_f64().unwrap(), "{steps}");
     // every check but self-intersections passes
     for c in m["validation"]["checks"].as_array().unwrap() {
         if c["name"] != "no self-intersections" {

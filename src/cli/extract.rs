@@ -171,7 +171,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
                 },
             );
             timings.push(("remesh", stage.done()));
-            (out.mesh, Some((params, q)))
+            (out.mesh, Some((params, q, out.timings)))
         }
         None => (mesh, None),
     };
@@ -246,6 +246,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
         })).collect::<Vec<_>>(),
         "extraction": {"triangles": extraction_size.0, "vertices": extraction_size.1},
         "quality": remeshed.as_ref().map(|r| &r.1),
+        "remesh_steps_s": remeshed.as_ref().map(|r| r.2),
         "validation": {"passed": report.passed(), "checks": report.checks},
         "timings_s": timings.iter().map(|(k, d)| ((*k).to_string(), serde_json::json!(d.as_secs_f64()))).collect::<serde_json::Map<_, _>>(),
     });
@@ -269,7 +270,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
         files.len(),
         extraction_size,
     );
-    if let Some((_, q)) = &remeshed {
+    if let Some((_, q, _)) = &remeshed {
         ui.say("remeshing quality (distance and volume change against the unsmoothed extraction):");
         ui.say(q.summary().trim_end());
     }
