@@ -25,6 +25,18 @@ fn extraction(vol: &LabelVolume, r: &Resolved) -> InterfaceMesh {
     .unwrap()
 }
 
+/// `remesh` with default parameters but the target edge (mm).
+fn remeshed(mesh: &InterfaceMesh, target_edge: f64) -> septa::remesh::Remeshed {
+    remesh(
+        mesh,
+        &RemeshParams {
+            target_edge,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
 /// Every invariant but self-intersections (counted separately).
 fn assert_valid_but_intersections(name: &str, mesh: &InterfaceMesh) -> u64 {
     let report = validate(
@@ -83,14 +95,7 @@ fn cube_remeshes_cleanly() {
     let vol = common::volume([n, n, n], &values);
     let r = Resolved::defaults(&vol);
     let mesh = extraction(&vol, &r);
-    let out = remesh(
-        &mesh,
-        &RemeshParams {
-            target_edge: 2.0,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let out = remeshed(&mesh, 2.0);
     assert_eq!(assert_valid_but_intersections("cube", &out.mesh), 0);
     assert!(out.mesh.triangle_count() * 3 < mesh.triangle_count());
     let q = quality(
@@ -131,14 +136,7 @@ fn thin_plate_survives() {
     let vol = common::volume([nx, ny, nz], &values);
     let r = Resolved::defaults(&vol);
     let mesh = extraction(&vol, &r);
-    let out = remesh(
-        &mesh,
-        &RemeshParams {
-            target_edge: 2.0,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let out = remeshed(&mesh, 2.0);
     assert_eq!(assert_valid_but_intersections("plate", &out.mesh), 0);
     assert_junctions_shared(&out.mesh);
     let q = quality(
@@ -169,14 +167,7 @@ fn noisy_phantom_quality() {
     .unwrap();
     let r = Resolved::defaults(&vol);
     let mesh = extraction(&vol, &r);
-    let out = remesh(
-        &mesh,
-        &RemeshParams {
-            target_edge: 2.0,
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let out = remeshed(&mesh, 2.0);
     let bad = assert_valid_but_intersections("noisy phantom", &out.mesh);
     assert_junctions_shared(&out.mesh);
     let q = quality(
@@ -239,14 +230,7 @@ fn islands_stay_outward() {
     let r = Resolved::defaults(&vol);
     let mesh = extraction(&vol, &r);
     for target_edge in [1.5, 2.0, 4.0] {
-        let out = remesh(
-            &mesh,
-            &RemeshParams {
-                target_edge,
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let out = remeshed(&mesh, target_edge);
         let name = format!("islands, L = {target_edge}");
         assert_eq!(
             assert_valid_but_intersections(&name, &out.mesh),
@@ -286,14 +270,7 @@ fn lenses_on_an_interface_do_not_cross() {
         )
         .unwrap();
         let mesh = extraction(&vol, &Resolved::defaults(&vol));
-        let out = remesh(
-            &mesh,
-            &RemeshParams {
-                target_edge,
-                ..Default::default()
-            },
-        )
-        .unwrap();
+        let out = remeshed(&mesh, target_edge);
         let name = format!("lenses, shift {shift}, L = {target_edge}");
         total += assert_valid_but_intersections(&name, &out.mesh);
         assert_junctions_shared(&out.mesh);
@@ -318,17 +295,7 @@ fn independent_of_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap();
-        pool.install(|| {
-            remesh(
-                &mesh,
-                &RemeshParams {
-                    target_edge: 2.0,
-                    ..Default::default()
-                },
-            )
-            .unwrap()
-            .mesh
-        })
+        pool.install(|| remeshed(&mesh, 2.0).mesh)
     };
     let (a, b) = (run(1), run(3));
     assert_eq!(a.triangles, b.triangles);

@@ -295,27 +295,10 @@ impl Bvh {
     /// Calls `f` with every item whose box overlaps `[lo, hi]` (and possibly
     /// others of the same leaf: `f` makes the exact test).
     pub fn query(&self, lo: DVec3, hi: DVec3, mut f: impl FnMut(u32)) {
-        if self.items.is_empty() {
-            return;
-        }
-        let mut stack = [0u32; 128];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let n = self.nodes[stack[top] as usize];
-            if n.lo.cmpgt(hi).any() || n.hi.cmplt(lo).any() {
-                continue;
-            }
-            if n.count > 0 {
-                for &i in &self.items[n.start as usize..(n.start + n.count) as usize] {
-                    f(i);
-                }
-            } else {
-                stack[top] = n.start;
-                stack[top + 1] = n.start + 1;
-                top += 2;
-            }
-        }
+        self.any(lo, hi, |i| {
+            f(i);
+            false
+        });
     }
 }
 
@@ -330,11 +313,7 @@ pub fn self_intersections_and_bvh(
     positions: &[DVec3],
     triangles: &[[u32; 3]],
 ) -> (Vec<(u32, u32)>, Bvh) {
-    let boxes: Vec<(DVec3, DVec3)> = triangles
-        .par_iter()
-        .map(|t| triangle_box(positions, *t))
-        .collect();
-    let bvh = Bvh::new(&boxes);
+    let bvh = triangle_bvh(positions, triangles);
     (intersections_in(positions, triangles, &bvh, None), bvh)
 }
 
@@ -345,11 +324,21 @@ pub fn intersections_of(
     triangles: &[[u32; 3]],
     subset: Option<&[u32]>,
 ) -> Vec<(u32, u32)> {
+    intersections_in(
+        positions,
+        triangles,
+        &triangle_bvh(positions, triangles),
+        subset,
+    )
+}
+
+/// A BVH over the [`triangle_box`]es of `triangles`.
+pub fn triangle_bvh(positions: &[DVec3], triangles: &[[u32; 3]]) -> Bvh {
     let boxes: Vec<(DVec3, DVec3)> = triangles
         .par_iter()
         .map(|t| triangle_box(positions, *t))
         .collect();
-    intersections_in(positions, triangles, &Bvh::new(&boxes), subset)
+    Bvh::new(&boxes)
 }
 
 /// The bounding box of triangle `t`, padded a little so that touching

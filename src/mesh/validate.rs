@@ -21,6 +21,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::Dsu;
 use super::InterfaceMesh;
 use crate::extract::is_degenerate;
 use crate::preprocess::RefinedVolume;
@@ -451,26 +452,6 @@ fn single_fan(run: &[(LabelId, u32, u32)]) -> bool {
     }
 }
 
-/// Union-find over triangle sides.
-struct Dsu(Vec<u32>);
-
-impl Dsu {
-    fn find(&mut self, mut x: u32) -> u32 {
-        while self.0[x as usize] != x {
-            let p = self.0[x as usize];
-            self.0[x as usize] = self.0[p as usize];
-            x = p;
-        }
-        x
-    }
-    fn union(&mut self, a: u32, b: u32) {
-        let (ra, rb) = (self.find(a), self.find(b));
-        if ra != rb {
-            self.0[ra.max(rb) as usize] = ra.min(rb);
-        }
-    }
-}
-
 /// One connected component of a label's surface.
 struct Component {
     label: LabelId,
@@ -487,7 +468,7 @@ fn check_component_orientation(
 ) -> (Check, Vec<LabelSurface>) {
     let mut check = Check::new("surfaces face away from their label");
     let n_sides = 2 * mesh.triangles.len();
-    let mut dsu = Dsu((0..n_sides as u32).collect());
+    let mut dsu = Dsu::new(n_sides);
     for &(a, b) in unions {
         dsu.union(a, b);
     }

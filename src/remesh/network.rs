@@ -2,7 +2,7 @@
 //! (where junction curves meet; they never move), which lie on a junction
 //! curve (they move only along it), and which are interior to one patch.
 
-use crate::mesh::InterfaceMesh;
+use crate::mesh::{Dsu, InterfaceMesh};
 
 /// Role of a vertex during smoothing and remeshing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -75,29 +75,17 @@ impl Network {
     /// number of islands marked.
     pub fn mark_islands(&mut self, mesh: &InterfaceMesh, max_voxels: f64, extent: f64) -> usize {
         let n = mesh.vertex_count();
-        let mut parent: Vec<u32> = (0..n as u32).collect();
-        fn find(parent: &mut [u32], mut v: u32) -> u32 {
-            while parent[v as usize] != v {
-                parent[v as usize] = parent[parent[v as usize] as usize];
-                v = parent[v as usize];
-            }
-            v
-        }
+        let mut dsu = Dsu::new(n);
         for t in &mesh.triangles {
-            let r0 = find(&mut parent, t[0]);
-            for &v in &t[1..] {
-                let r = find(&mut parent, v);
-                if r != r0 {
-                    parent[r as usize] = r0;
-                }
-            }
+            dsu.union(t[0], t[1]);
+            dsu.union(t[0], t[2]);
         }
         let mut junction = vec![false; n];
         let mut lo = vec![glam::DVec3::splat(f64::MAX); n];
         let mut hi = vec![glam::DVec3::splat(f64::MIN); n];
         let mut roots = vec![0u32; n];
         for v in 0..n as u32 {
-            let r = find(&mut parent, v) as usize;
+            let r = dsu.find(v) as usize;
             roots[v as usize] = r as u32;
             junction[r] |= self.on_junction(v);
             lo[r] = lo[r].min(mesh.positions[v as usize]);

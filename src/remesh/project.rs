@@ -106,17 +106,6 @@ impl SurfaceRef {
         None
     }
 
-    /// Nearest point of the reference surface and the unit normal of the
-    /// triangle it lies on (`None` if the reference is empty).
-    pub fn nearest(&self, p: DVec3) -> Option<(DVec3, DVec3)> {
-        let (i, _) = self.bvh.nearest(p, |i| self.dist2(i, p))?;
-        let t = &self.tris[i as usize];
-        Some((
-            closest_on_triangle(p, t[0], t[1], t[2]),
-            self.normal(i).normalize_or_zero(),
-        ))
-    }
-
     /// Whether triangle (a, b, c) follows the reference: within `eps` of its
     /// centroid lies a reference triangle that does not face against it.
     /// Returns such a triangle ([`NO_TRIANGLE`] if the reference is empty),
