@@ -64,31 +64,64 @@ impl HalfedgeMesh {
             v_dead: vec![false; nv],
             ..Default::default()
         };
-        // directed edge -> halfedge
-        let mut edge_of: hashbrown::HashMap<(u32, u32), u32> =
-            hashbrown::HashMap::with_capacity(tris.len() * 3);
-        for (t, tri) in tris.iter().enumerate() {
-            if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
-                return Err(BuildError::DegenerateTriangle(t));
+        if let Some(t) = tris
+            .iter()
+            .position(|t| t[0] == t[1] || t[1] == t[2] || t[0] == t[2])
+        {
+            return Err(BuildError::DegenerateTriangle(t));
+        }
+        // Corner c = 3 t + k is the directed edge tri[k] -> tri[k + 1]. The
+        // corners leaving each vertex, by counting sort, find each corner's
+        // opposite without a hash map.
+        let corner = |c: usize| {
+            let t = &tris[c / 3];
+            (t[c % 3], t[(c % 3 + 1) % 3])
+        };
+        let mut start = vec![0u32; nv + 1];
+        for t in tris {
+            for &v in t {
+                start[v as usize + 1] += 1;
             }
+        }
+        for v in 0..nv {
+            start[v + 1] += start[v];
+        }
+        let mut fill = start.clone();
+        let mut leaving = vec![0u32; 3 * tris.len()];
+        for c in 0..3 * tris.len() {
+            let a = corner(c).0 as usize;
+            leaving[fill[a] as usize] = c as u32;
+            fill[a] += 1;
+        }
+        let leaving_from = |v: u32| &leaving[start[v as usize] as usize..start[v as usize + 1] as usize];
+        // halfedges in order of first appearance (as a hash map would give)
+        let mut corner_h = vec![NONE; 3 * tris.len()];
+        m.f_h.reserve(tris.len());
+        m.f_dead.reserve(tris.len());
+        for (t, _) in tris.iter().enumerate() {
             let f = m.f_h.len() as u32;
             m.f_h.push(NONE);
             m.f_dead.push(false);
             let mut hs = [0u32; 3];
             for k in 0..3 {
-                let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                let h = match edge_of.get(&(a, b)) {
-                    Some(&h) => h,
-                    None => {
-                        let h = m.new_edge(a, b);
-                        edge_of.insert((b, a), h ^ 1);
-                        h
-                    }
-                };
-                if m.h_face[h as usize] != NONE {
+                let c = 3 * t + k;
+                let (a, b) = corner(c);
+                // a second corner a -> b: the edge is used twice the same way
+                if leaving_from(a)
+                    .iter()
+                    .any(|&d| d as usize != c && corner(d as usize).1 == b)
+                {
                     return Err(BuildError::NonManifoldEdge(a, b));
                 }
-                edge_of.insert((a, b), h);
+                let h = if corner_h[c] != NONE {
+                    corner_h[c]
+                } else {
+                    let h = m.new_edge(a, b);
+                    if let Some(&d) = leaving_from(b).iter().find(|&&d| corner(d as usize).1 == a) {
+                        corner_h[d as usize] = h ^ 1;
+                    }
+                    h
+                };
                 m.h_face[h as usize] = f;
                 hs[k] = h;
             }
@@ -427,14 +460,30 @@ impl HalfedgeMesh {
             return false;
         }
         // the one-rings of v0 and v1 may share only vl and vr
-        let ring0: Vec<u32> = self.outgoing(v0).map(|g| self.to(g)).collect();
-        for g in self.outgoing(v1) {
-            let w = self.to(g);
-            if w != vl && w != vr && ring0.contains(&w) {
-                return false;
+        // (on the stack: this runs for every collapse candidate)
+        let mut ring0 = [NONE; 32];
+        let mut n0 = 0;
+        for g in self.outgoing(v0) {
+            if n0 == ring0.len() {
+                return self.rings_share_only(v0, v1, vl, vr);
             }
+            ring0[n0] = self.to(g);
+            n0 += 1;
         }
-        true
+        let ring0 = &ring0[..n0];
+        self.outgoing(v1).all(|g| {
+            let w = self.to(g);
+            w == vl || w == vr || !ring0.contains(&w)
+        })
+    }
+
+    /// The link condition's ring test for vertices of very high valence.
+    fn rings_share_only(&self, v0: u32, v1: u32, vl: u32, vr: u32) -> bool {
+        let ring0: Vec<u32> = self.outgoing(v0).map(|g| self.to(g)).collect();
+        self.outgoing(v1).all(|g| {
+            let w = self.to(g);
+            w == vl || w == vr || !ring0.contains(&w)
+        })
     }
 
     /// Collapses `h`: its from-vertex is removed and its triangles merged into

@@ -469,7 +469,8 @@ fn build_patch(
     p: usize,
     tris: &[u32],
 ) -> Result<PatchState> {
-    let mut local_of: HashMap<u32, u32> = HashMap::with_capacity(tris.len());
+    // local ids in order of first use (a flat map: a few MB, cheaper than hashing)
+    let mut local_of = vec![NONE; mesh.positions.len()];
     let mut pos = Vec::new();
     let mut tag = Vec::new();
     let mut local_tris = Vec::with_capacity(tris.len());
@@ -478,11 +479,12 @@ fn build_patch(
         let tri = mesh.triangles[t as usize];
         ref_tris.push(tri.map(|v| smoothed[v as usize]));
         local_tris.push(tri.map(|v| {
-            *local_of.entry(v).or_insert_with(|| {
+            if local_of[v as usize] == NONE {
+                local_of[v as usize] = pos.len() as u32;
                 pos.push(smoothed[v as usize]);
                 tag.push(v);
-                (pos.len() - 1) as u32
-            })
+            }
+            local_of[v as usize]
         }));
     }
     let mut m = HalfedgeMesh::from_triangles(pos, tag, &local_tris).map_err(|e| {
@@ -560,7 +562,17 @@ pub(super) fn collapse_geometry_ok(
     fit: Fit,
 ) -> bool {
     let (v0, v1) = (m.from(h), m.to(h));
-    let mut hint = m.hint[v1 as usize];
+    // the triangles that stay, as (w, b) with the new triangle (p, w, b)
+    let kept = |g: u32| {
+        let w = m.to(g);
+        if m.is_boundary_halfedge(g) {
+            return None;
+        }
+        let b = m.to(m.next(g));
+        // triangles containing both v0 and v1 disappear
+        (w != v1 && b != v1).then_some((w, b))
+    };
+    // cheap checks first, for every triangle: the fits cost the most
     for g in m.outgoing(v0) {
         let w = m.to(g);
         if w != v1 && (m.pos[w as usize] - p).length() > max_edge {
@@ -576,14 +588,9 @@ pub(super) fn collapse_geometry_ok(
         {
             return false;
         }
-        if m.is_boundary_halfedge(g) {
+        let Some((w, b)) = kept(g) else {
             continue;
-        }
-        let b = m.to(m.next(g));
-        // triangles containing both v0 and v1 disappear
-        if w == v1 || b == v1 {
-            continue;
-        }
+        };
         // (v1, w, b) must not already exist reversed (a two-triangle pillow)
         let o = m.next(g) ^ 1;
         if !m.is_boundary_halfedge(o) && m.to(m.next(o)) == v1 {
@@ -609,7 +616,13 @@ pub(super) fn collapse_geometry_ok(
         if q_new < MIN_QUALITY && q_new < q_old {
             return false;
         }
-        match fit.check(p, pa, pb, hint) {
+    }
+    let mut hint = m.hint[v1 as usize];
+    for g in m.outgoing(v0) {
+        let Some((w, b)) = kept(g) else {
+            continue;
+        };
+        match fit.check(p, m.pos[w as usize], m.pos[b as usize], hint) {
             Some(near) => hint = near,
             None => return false,
         }
@@ -753,9 +766,12 @@ fn relax_and_project(m: &mut HalfedgeMesh, fit: Fit) {
         })
         .collect();
     for (v, p, near) in moves {
+        // the triangle under the new position starts the fit walks
+        let old_hint = std::mem::replace(&mut m.hint[v as usize], near);
         if move_ok(m, v, p, fit) {
             m.pos[v as usize] = p;
-            m.hint[v as usize] = near;
+        } else {
+            m.hint[v as usize] = old_hint;
         }
     }
 }

@@ -25,6 +25,27 @@ pub const NO_TRIANGLE: u32 = u32::MAX;
 /// Steps a walk may take before the BVH answers instead.
 const WALK_STEPS: usize = 48;
 
+/// Where a walk stopped: a triangle, its (unnormalised) normal, and the
+/// squared distance to its plane if the query point projects into it (NaN
+/// otherwise).
+struct Reached {
+    triangle: u32,
+    normal: DVec3,
+    plane_dist2: f64,
+}
+
+impl Reached {
+    /// Squared distance from `p` (the walk's point) to the triangle.
+    #[inline]
+    fn dist2(&self, r: &SurfaceRef, p: DVec3) -> f64 {
+        if self.plane_dist2.is_nan() {
+            r.dist2(self.triangle, p)
+        } else {
+            self.plane_dist2
+        }
+    }
+}
+
 /// Reference triangles of one patch, with their neighbours across edges for
 /// local walks and a BVH for global queries.
 pub struct SurfaceRef {
@@ -73,7 +94,7 @@ impl SurfaceRef {
     /// plane) until `p` projects into the triangle or a patch boundary stops
     /// the walk; returns that triangle, or `None` if the walk was too long
     /// (or `start` is no triangle).
-    fn walk(&self, p: DVec3, start: u32) -> Option<u32> {
+    fn walk(&self, p: DVec3, start: u32) -> Option<Reached> {
         if start as usize >= self.tris.len() {
             return None;
         }
@@ -98,7 +119,21 @@ impl SurfaceRef {
                 }
             }
             if next == NO_TRIANGLE {
-                return Some(cur);
+                // `p` projects into the triangle: its nearest point there is
+                // the foot on the plane
+                let inside = beyond.iter().all(|&b| b >= 0.0);
+                let n2 = n.length_squared();
+                let plane_dist2 = if inside && n2 > 0.0 {
+                    let h = n.dot(p - a);
+                    h * h / n2
+                } else {
+                    f64::NAN
+                };
+                return Some(Reached {
+                    triangle: cur,
+                    normal: n,
+                    plane_dist2,
+                });
             }
             recent[step % recent.len()] = cur;
             cur = next;
@@ -122,9 +157,10 @@ impl SurfaceRef {
         let n = (b - a).cross(c - a);
         let eps2 = eps * eps;
         let ok = |i: u32| self.normal(i).dot(n) > 0.0 && self.dist2(i, centroid) <= eps2;
-        if let Some(t) = self.walk(centroid, hint) {
+        if let Some(reached) = self.walk(centroid, hint) {
             // the triangle reached or one of its neighbours
-            if ok(t) {
+            let t = reached.triangle;
+            if reached.normal.dot(n) > 0.0 && reached.dist2(self, centroid) <= eps2 {
                 return Some(t);
             }
             if let Some(&i) = self.adjacent[t as usize]
@@ -156,16 +192,21 @@ impl SurfaceRef {
     /// triangle near `p` (or [`NO_TRIANGLE`]), only makes it faster: a walk
     /// from it gives a first guess that bounds the BVH search.
     pub fn project_from(&self, p: DVec3, hint: u32) -> (DVec3, u32) {
-        let guess = self.walk(p, hint).map(|t| {
-            // the nearer of the triangle reached and its neighbours
-            std::iter::once(t)
-                .chain(self.adjacent[t as usize].iter().copied())
+        let guess = self.walk(p, hint).map(|reached| {
+            // the triangle reached if `p` projects into it, else the nearer
+            // of it and its neighbours (the BVH search below is bounded by it)
+            let t = reached.triangle;
+            if !reached.plane_dist2.is_nan() {
+                return (t, reached.plane_dist2);
+            }
+            self.adjacent[t as usize]
+                .iter()
+                .copied()
                 .filter(|&i| i != NO_TRIANGLE)
                 .map(|i| (i, self.dist2(i, p)))
-                .fold(
-                    (t, f64::INFINITY),
-                    |best, x| if x.1 < best.1 { x } else { best },
-                )
+                .fold((t, reached.dist2(self, p)), |best, x| {
+                    if x.1 < best.1 { x } else { best }
+                })
         });
         let found = self.bvh.nearest_below(p, guess, |i| self.dist2(i, p));
         match found {

@@ -167,28 +167,30 @@ pub fn smooth(
             }
         }
     }
-    // 2-D: interior vertices over their one-rings
+    // 2-D: interior vertices over their one-rings, into a second buffer
+    // (Jacobi: new positions from old; no allocation per pass)
     let adj = Adjacency::new(pos.len(), &mesh.triangles);
-    let interior: Vec<u32> = (0..pos.len() as u32)
-        .filter(|&v| net.kind[v as usize] == VertexKind::Interior)
-        .collect();
+    let mut next = pos.clone();
     for _ in 0..iterations {
         for f in [LAMBDA, MU] {
-            let new: Vec<DVec3> = interior
-                .par_iter()
-                .map(|&v| {
-                    let nb = adj.of(v as usize);
-                    let p = pos[v as usize];
-                    if nb.is_empty() {
-                        return p;
+            next.par_chunks_mut(1 << 12)
+                .enumerate()
+                .for_each(|(ci, out)| {
+                    let first = ci << 12;
+                    for (k, q) in out.iter_mut().enumerate() {
+                        let v = first + k;
+                        let p = pos[v];
+                        let nb = adj.of(v);
+                        *q = if net.kind[v] != VertexKind::Interior || nb.is_empty() {
+                            p
+                        } else {
+                            let c = nb.iter().map(|&w| pos[w as usize]).sum::<DVec3>()
+                                / nb.len() as f64;
+                            conf.clamp(start[v], p + (c - p) * f)
+                        };
                     }
-                    let c = nb.iter().map(|&w| pos[w as usize]).sum::<DVec3>() / nb.len() as f64;
-                    conf.clamp(start[v as usize], p + (c - p) * f)
-                })
-                .collect();
-            for (&v, p) in interior.iter().zip(new) {
-                pos[v as usize] = p;
-            }
+                });
+            std::mem::swap(&mut pos, &mut next);
         }
     }
     untangle(&mesh.triangles, start, &mut pos);
