@@ -8,6 +8,8 @@
 //! removed by [`HalfedgeMesh::collect_garbage`]. Vertices on the patch boundary
 //! can be *locked* (junction curves): remeshing never moves or removes them.
 
+use std::cell::Cell;
+
 use glam::DVec3;
 
 /// "No element".
@@ -24,6 +26,10 @@ pub struct HalfedgeMesh {
     /// Caller's hint per vertex (e.g. a nearby reference triangle), carried
     /// like `tag`: a split's new vertex gets the hint of the edge's origin.
     pub hint: Vec<u32>,
+    /// Caller's hint per face (e.g. a reference triangle near its centroid),
+    /// advisory and so updatable through `&self`: a split's new face gets the
+    /// hint of the face it came from.
+    pub face_hint: Vec<Cell<u32>>,
     v_out: Vec<u32>,
     v_dead: Vec<bool>,
     h_to: Vec<u32>,
@@ -93,11 +99,13 @@ impl HalfedgeMesh {
             leaving[fill[a] as usize] = c as u32;
             fill[a] += 1;
         }
-        let leaving_from = |v: u32| &leaving[start[v as usize] as usize..start[v as usize + 1] as usize];
+        let leaving_from =
+            |v: u32| &leaving[start[v as usize] as usize..start[v as usize + 1] as usize];
         // halfedges in order of first appearance (as a hash map would give)
         let mut corner_h = vec![NONE; 3 * tris.len()];
         m.f_h.reserve(tris.len());
         m.f_dead.reserve(tris.len());
+        m.face_hint = vec![Cell::new(NONE); tris.len()];
         for (t, _) in tris.iter().enumerate() {
             let f = m.f_h.len() as u32;
             m.f_h.push(NONE);
@@ -154,9 +162,10 @@ impl HalfedgeMesh {
         (self.pos.len() - 1) as u32
     }
 
-    fn new_face(&mut self, h: u32) -> u32 {
+    fn new_face(&mut self, h: u32, hint: u32) -> u32 {
         self.f_h.push(h);
         self.f_dead.push(false);
+        self.face_hint.push(Cell::new(hint));
         (self.f_h.len() - 1) as u32
     }
 
@@ -370,7 +379,7 @@ impl HalfedgeMesh {
             // face (a, b, c): h: a->m, new s: m->c, hp: c->a | t: m->b, hn: b->c, s^1: c->m
             let c = self.to(hn);
             let s = self.new_edge(m, c);
-            let f2 = self.new_face(t);
+            let f2 = self.new_face(t, self.face_hint[fh as usize].get());
             self.link(h, s);
             self.link(s, hp);
             self.link(hp, h);
@@ -393,7 +402,7 @@ impl HalfedgeMesh {
             // face (b, a, d): o was b->a; now t^1: b->m, new r: m->d, op: d->b | o: m->a, on: a->d, r^1: d->m
             let d = self.to(on);
             let r = self.new_edge(m, d);
-            let f2 = self.new_face(t ^ 1);
+            let f2 = self.new_face(t ^ 1, self.face_hint[fo as usize].get());
             self.link(t ^ 1, r);
             self.link(r, op);
             self.link(op, t ^ 1);
@@ -710,6 +719,11 @@ impl HalfedgeMesh {
         m.locked.resize(m.pos.len(), false);
         m.hint = hint;
         m.hint.resize(m.pos.len(), NONE);
+        // faces keep their order
+        m.face_hint = (0..self.f_h.len())
+            .filter(|&f| !self.f_dead[f])
+            .map(|f| self.face_hint[f].clone())
+            .collect();
         *self = m;
         vmap
     }

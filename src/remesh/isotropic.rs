@@ -77,6 +77,31 @@ impl Fit<'_> {
         self.reference.fits(a, b, c, self.eps, hint)
     }
 
+    /// [`Fit::check`] for a triangle that will replace face `f` of `m`: starts
+    /// from the face's hint if it has one (else from `hint`), and leaves the
+    /// reference triangle found in both.
+    #[inline]
+    pub(super) fn check_face(
+        &self,
+        m: &HalfedgeMesh,
+        f: u32,
+        a: DVec3,
+        b: DVec3,
+        c: DVec3,
+        hint: &mut u32,
+    ) -> bool {
+        let own = m.face_hint[f as usize].get();
+        let start = if own != NO_TRIANGLE { own } else { *hint };
+        match self.check(a, b, c, start) {
+            Some(near) => {
+                *hint = near;
+                m.face_hint[f as usize].set(near);
+                true
+            }
+            None => false,
+        }
+    }
+
     /// Whether triangle (a, b, c) fits (see [`Fit::check`]).
     #[inline]
     pub(super) fn ok(&self, a: DVec3, b: DVec3, c: DVec3, hint: u32) -> bool {
@@ -513,6 +538,7 @@ fn build_patch(
             }
             let from = m.from(h) as usize;
             m.hint[from] = f as u32;
+            m.face_hint[f].set(f as u32);
             h = m.next(h);
         }
     }
@@ -543,9 +569,8 @@ pub(super) fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3, fit: Fit) -> bool {
         if q_new < MIN_QUALITY && q_new < q_old {
             return false;
         }
-        match fit.check(p, a, b, hint) {
-            Some(near) => hint = near,
-            None => return false,
+        if !fit.check_face(m, m.face(h), p, a, b, &mut hint) {
+            return false;
         }
     }
     true
@@ -622,9 +647,15 @@ pub(super) fn collapse_geometry_ok(
         let Some((w, b)) = kept(g) else {
             continue;
         };
-        match fit.check(p, m.pos[w as usize], m.pos[b as usize], hint) {
-            Some(near) => hint = near,
-            None => return false,
+        if !fit.check_face(
+            m,
+            m.face(g),
+            p,
+            m.pos[w as usize],
+            m.pos[b as usize],
+            &mut hint,
+        ) {
+            return false;
         }
     }
     true
@@ -731,10 +762,14 @@ pub(super) fn flip_geometry_ok(m: &HalfedgeMesh, a: u32, b: u32, c: u32, d: u32,
     }
     let q_old = triangle_quality(pa, pb, pc).min(triangle_quality(pb, pa, pd));
     let q_new = triangle_quality(pd, pc, pa).min(triangle_quality(pc, pd, pb));
+    let h = m
+        .outgoing(a)
+        .find(|&h| m.to(h) == b)
+        .expect("a-b is an edge");
+    let mut hint = m.hint[a as usize];
     q_new >= q_old.min(MIN_QUALITY)
-        && fit
-            .check(pd, pc, pa, m.hint[a as usize])
-            .is_some_and(|near| fit.ok(pc, pd, pb, near))
+        && fit.check_face(m, m.face(h), pd, pc, pa, &mut hint)
+        && fit.check_face(m, m.face(h ^ 1), pc, pd, pb, &mut hint)
 }
 
 /// Tangential relaxation toward the centroid of the one-ring, then projection

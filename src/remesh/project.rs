@@ -157,6 +157,10 @@ impl SurfaceRef {
         let n = (b - a).cross(c - a);
         let eps2 = eps * eps;
         let ok = |i: u32| self.normal(i).dot(n) > 0.0 && self.dist2(i, centroid) <= eps2;
+        // the hint itself is often near enough: no walk then
+        if (hint as usize) < self.tris.len() && ok(hint) {
+            return Some(hint);
+        }
         if let Some(reached) = self.walk(centroid, hint) {
             // the triangle reached or one of its neighbours
             let t = reached.triangle;
