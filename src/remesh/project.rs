@@ -1,5 +1,6 @@
 //! Projection onto the smoothed reference: the nearest point on a patch's
-//! reference triangles, or on a junction curve's reference polyline (BVH
+//! reference triangles (walks across the reference from a hint, made exact by
+//! a uniform cell grid), or on a junction curve's reference polyline (BVH
 //! nearest-point queries).
 
 use glam::DVec3;
@@ -47,12 +48,122 @@ impl Reached {
 }
 
 /// Reference triangles of one patch, with their neighbours across edges for
-/// local walks and a BVH for global queries.
+/// local walks and a cell grid for exact queries.
 pub struct SurfaceRef {
     tris: Vec<[DVec3; 3]>,
     /// Neighbour across edge k (corners k, k + 1), or [`NO_TRIANGLE`].
     adjacent: Vec<[u32; 3]>,
-    bvh: Bvh,
+    grid: CellGrid,
+}
+
+/// Triangles binned into the cells of a uniform grid their boxes overlap
+/// (compressed rows by counting sort). Queries near the surface (the usual
+/// case: a point a fraction of a cell from it) read one to eight cells, which
+/// is cheaper than descending a tree.
+struct CellGrid {
+    lo: DVec3,
+    /// Cell edge length (mm) and its inverse.
+    cell: f64,
+    inv: f64,
+    dims: [usize; 3],
+    /// Items of cell c: `items[start[c]..start[c + 1]]`.
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+/// Cells per triangle the grid aims at (a few triangles per occupied cell).
+const CELLS_PER_TRIANGLE: f64 = 2.0;
+
+impl CellGrid {
+    fn new(boxes: &[(DVec3, DVec3)]) -> Self {
+        let (lo, hi) = boxes.iter().fold(
+            (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+            |(lo, hi), b| (lo.min(b.0), hi.max(b.1)),
+        );
+        if boxes.is_empty() {
+            return CellGrid {
+                lo: DVec3::ZERO,
+                cell: 1.0,
+                inv: 1.0,
+                dims: [1; 3],
+                start: vec![0, 0],
+                items: Vec::new(),
+            };
+        }
+        // cells of about the mean triangle size, at most a few per triangle
+        let ext = (hi - lo).max(DVec3::splat(1e-9));
+        let mean_size =
+            boxes.iter().map(|b| (b.1 - b.0).max_element()).sum::<f64>() / boxes.len() as f64;
+        let by_count = (ext.x * ext.y * ext.z / (CELLS_PER_TRIANGLE * boxes.len() as f64)).cbrt();
+        let cell = mean_size.max(by_count).max(ext.max_element() * 1e-6);
+        let dims = (ext / cell).to_array().map(|d| d.floor() as usize + 1);
+        let mut grid = CellGrid {
+            lo,
+            cell,
+            inv: 1.0 / cell,
+            dims,
+            start: Vec::new(),
+            items: Vec::new(),
+        };
+        let ncells = dims[0] * dims[1] * dims[2];
+        let mut start = vec![0u32; ncells + 1];
+        for b in boxes {
+            grid.for_cells(b.0, b.1, |c| start[c + 1] += 1);
+        }
+        for c in 0..ncells {
+            start[c + 1] += start[c];
+        }
+        let mut fill = start.clone();
+        let mut items = vec![0u32; start[ncells] as usize];
+        for (i, b) in boxes.iter().enumerate() {
+            grid.for_cells(b.0, b.1, |c| {
+                items[fill[c] as usize] = i as u32;
+                fill[c] += 1;
+            });
+        }
+        grid.start = start;
+        grid.items = items;
+        grid
+    }
+
+    /// Cell coordinates of `p`, clamped to the grid.
+    #[inline]
+    fn coords(&self, p: DVec3) -> [usize; 3] {
+        let q = (p - self.lo) * self.inv;
+        [0, 1, 2].map(|k| (q[k].max(0.0) as usize).min(self.dims[k] - 1))
+    }
+
+    /// Calls `f` with every cell overlapping box [lo, hi] (clamped to the grid).
+    #[inline]
+    fn for_cells(&self, lo: DVec3, hi: DVec3, mut f: impl FnMut(usize)) {
+        let (a, b) = (self.coords(lo), self.coords(hi));
+        for z in a[2]..=b[2] {
+            for y in a[1]..=b[1] {
+                let row = (z * self.dims[1] + y) * self.dims[0];
+                for x in a[0]..=b[0] {
+                    f(row + x);
+                }
+            }
+        }
+    }
+
+    #[inline]
+    fn cell_items(&self, c: usize) -> &[u32] {
+        &self.items[self.start[c] as usize..self.start[c + 1] as usize]
+    }
+
+    /// Number of cells overlapping box [lo, hi].
+    fn cells_in(&self, lo: DVec3, hi: DVec3) -> usize {
+        let (a, b) = (self.coords(lo), self.coords(hi));
+        (0..3).map(|k| b[k] - a[k] + 1).product()
+    }
+}
+
+/// Squared distance from `p` to the bounding box of triangle `t`.
+#[inline]
+fn box_dist2(t: &[DVec3; 3], p: DVec3) -> f64 {
+    let (lo, hi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+    (lo - p).max(p - hi).max(DVec3::ZERO).length_squared()
 }
 
 impl SurfaceRef {
@@ -71,7 +182,7 @@ impl SurfaceRef {
             .map(|t| (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])))
             .collect();
         SurfaceRef {
-            bvh: Bvh::new(&boxes),
+            grid: CellGrid::new(&boxes),
             tris,
             adjacent,
         }
@@ -175,13 +286,17 @@ impl SurfaceRef {
             }
         }
         let e = DVec3::splat(eps);
+        let (lo, hi) = (centroid - e, centroid + e);
         let mut found = None;
-        self.bvh.any(centroid - e, centroid + e, |i| {
-            let hit = ok(i);
-            if hit {
-                found = Some(i);
+        self.grid.for_cells(lo, hi, |c| {
+            if found.is_none() {
+                found = self
+                    .grid
+                    .cell_items(c)
+                    .iter()
+                    .copied()
+                    .find(|&i| box_dist2(&self.tris[i as usize], centroid) <= eps2 && ok(i));
             }
-            hit
         });
         found
     }
@@ -212,7 +327,7 @@ impl SurfaceRef {
                     if x.1 < best.1 { x } else { best }
                 })
         });
-        let found = self.bvh.nearest_below(p, guess, |i| self.dist2(i, p));
+        let found = self.nearest_below(p, guess);
         match found {
             Some((i, _)) => {
                 let t = &self.tris[i as usize];
@@ -220,6 +335,75 @@ impl SurfaceRef {
             }
             None => (p, NO_TRIANGLE),
         }
+    }
+}
+
+impl SurfaceRef {
+    /// The reference triangle nearest to `p` and its squared distance, or
+    /// `guess` if none is nearer: cells are searched in growing cubes around
+    /// `p` until the best distance is below the distance to the cube's outside.
+    fn nearest_below(&self, p: DVec3, guess: Option<(u32, f64)>) -> Option<(u32, f64)> {
+        if self.tris.is_empty() {
+            return guess;
+        }
+        let g = &self.grid;
+        let mut best = guess.unwrap_or((NO_TRIANGLE, f64::INFINITY));
+        let visit = |c: usize, best: &mut (u32, f64)| {
+            for &i in g.cell_items(c) {
+                let t = &self.tris[i as usize];
+                if box_dist2(t, p) < best.1 {
+                    let d = self.dist2(i, p);
+                    if d < best.1 {
+                        *best = (i, d);
+                    }
+                }
+            }
+        };
+        // a good guess bounds the search to a small box
+        if best.1.is_finite() {
+            let r = DVec3::splat(best.1.sqrt());
+            if g.cells_in(p - r, p + r) <= 27 {
+                g.for_cells(p - r, p + r, |c| visit(c, &mut best));
+                return Some(best);
+            }
+        }
+        // growing cubes of cells around the cell of p (p may lie outside the grid)
+        let centre = g.coords(p);
+        let max_r = g.dims.iter().copied().max().unwrap_or(1);
+        for r in 0..=max_r {
+            let (a, b) = (
+                centre.map(|c| c.saturating_sub(r)),
+                [0, 1, 2].map(|k| (centre[k] + r).min(g.dims[k] - 1)),
+            );
+            for z in a[2]..=b[2] {
+                for y in a[1]..=b[1] {
+                    let row = (z * g.dims[1] + y) * g.dims[0];
+                    let shell_row = z == a[2] || z == b[2] || y == a[1] || y == b[1];
+                    for x in a[0]..=b[0] {
+                        // only the cells new in this cube
+                        if r == 0 || shell_row || x == a[0] || x == b[0] {
+                            visit(row + x, &mut best);
+                        }
+                    }
+                }
+            }
+            // everything outside the cube is at least this far from p
+            let cube_lo = g.lo + DVec3::from_array(a.map(|c| c as f64)) * g.cell;
+            let cube_hi = g.lo + DVec3::from_array(b.map(|c| (c + 1) as f64)) * g.cell;
+            let mut outside = f64::INFINITY;
+            for k in 0..3 {
+                if a[k] > 0 {
+                    outside = outside.min(p[k] - cube_lo[k]);
+                }
+                if b[k] + 1 < g.dims[k] {
+                    outside = outside.min(cube_hi[k] - p[k]);
+                }
+            }
+            if outside == f64::INFINITY || (outside > 0.0 && best.1 <= outside * outside) {
+                break;
+            }
+        }
+        (best.0 != NO_TRIANGLE).then_some(best)
     }
 }
 
@@ -323,6 +507,46 @@ mod tests {
             }
         }
         SurfaceRef::with_adjacency(tris, adjacent)
+    }
+
+    #[test]
+    fn grid_answers_equal_brute_force() {
+        let r = wavy(20);
+        let mut x = 987654321u64;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for k in 0..3000 {
+            // near the surface, and (every tenth) far from it or outside the grid
+            let spread = if k % 10 == 0 { 40.0 } else { 1.0 };
+            let p = DVec3::new(
+                next() * 10.0 + (next() - 0.5) * spread,
+                next() * 10.0 + (next() - 0.5) * spread,
+                (next() - 0.5) * 4.0 * spread,
+            );
+            let brute = (0..r.tris.len() as u32)
+                .map(|i| r.dist2(i, p))
+                .fold(f64::INFINITY, f64::min);
+            let (q, t) = r.project_from(p, NO_TRIANGLE);
+            assert!(((q - p).length_squared() - brute).abs() < 1e-9, "{p}");
+            assert!((r.dist2(t, p) - brute).abs() < 1e-9);
+            let hint = (next() * r.tris.len() as f64) as u32;
+            assert!(((r.project_from(p, hint).0 - p).length_squared() - brute).abs() < 1e-9);
+            let (b, c) = (
+                p + DVec3::new(0.4, 0.1, 0.0),
+                p + DVec3::new(0.1, 0.3, 0.05),
+            );
+            let n = (b - p).cross(c - p);
+            let centroid = (p + b + c) / 3.0;
+            for eps in [0.05, 0.3, 1.0] {
+                let exists = (0..r.tris.len() as u32)
+                    .any(|i| r.normal(i).dot(n) > 0.0 && r.dist2(i, centroid) <= eps * eps);
+                assert_eq!(r.fits(p, b, c, eps, NO_TRIANGLE).is_some(), exists);
+            }
+        }
     }
 
     #[test]
