@@ -72,7 +72,7 @@ struct CellGrid {
 }
 
 /// Cells per triangle the grid aims at (a few triangles per occupied cell).
-const CELLS_PER_TRIANGLE: f64 = 2.0;
+const CELLS_PER_TRIANGLE: f64 = 8.0;
 
 impl CellGrid {
     fn new(boxes: &[(DVec3, DVec3)]) -> Self {
