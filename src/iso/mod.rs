@@ -17,6 +17,7 @@
 //! outside the volume counts as inactive, so every surface closes.
 //!
 //! Files of this module:
+//! - `cpu.rs`: run-time dispatch of the hot loops to popcnt/AVX2 code;
 //! - `table.rs`: the 2×2×2 cell table (cycles, L triangulations, the 14 types);
 //! - `grid.rs`: activity bits, boundary-face ids (rank bitsets), support points;
 //! - `surface.rs`: the parallel march over grid vertices;
@@ -38,6 +39,7 @@
 //! ```
 
 pub mod contour_io;
+mod cpu;
 pub mod diconex;
 mod grid;
 pub mod image2d;

@@ -2,21 +2,24 @@
 //! ranges, emits the N-cycles of its 2×2×2 cell as triangles over the dense
 //! boundary-face ids (VESTA's "original" point economy — one point per boundary
 //! face — with the "marching" memory economy: nothing but the activity bits and
-//! the face ranks is held for the whole volume).
+//! a few face counts is held for the whole volume).
 //!
 //! Grid vertices are visited 64 at a time: eight 64-bit activity windows (one
 //! per octant) give every vertex's mask at once, and vertices whose eight cells
 //! are all active or all inactive are skipped with two bit operations. Only
 //! the others look up their [`CellEntry`]; in mixed mode, a vertex with a point
-//! of ambiguity reads the four voxel values around each ambiguous edge.
+//! of ambiguity reads the four voxel values around each ambiguous edge. The
+//! face ids come from the same windows: a word of the faces on one side of
+//! the vertices is two octant windows XORed, and an id is the stream's count
+//! at the word plus a popcount below the vertex's bit.
 
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::grid::{Activity, Faces, Rows, WORDS_PER_TASK};
+use super::grid::{Activity, Faces, Rows, WORDS_PER_TASK, funnel};
 use super::stats::TypeCounts;
 use super::table::{CellEntry, Table};
-use super::{Mode, Scalar};
+use super::{Mode, Scalar, cpu};
 use crate::extract::{Decompose, is_degenerate};
 use crate::star::{edge_star, face_axis, face_octants};
 
@@ -45,22 +48,24 @@ pub(crate) struct March<'a, T> {
     pub decompose: Decompose,
 }
 
-/// Per-quarter-face constants: normal axis and the offset of the cell on the
-/// face's + side (the face is on that cell's low side).
+/// Per-quarter-face constants: normal axis and the octants on the face's −
+/// and + sides (the face is on the low side of the + cell).
 struct FaceCells {
     axis: [usize; 12],
+    lo: [usize; 12],
     hi: [usize; 12],
 }
 
 impl FaceCells {
-    fn new(offsets: &[usize; 8]) -> Self {
+    fn new() -> Self {
         let mut fc = FaceCells {
             axis: [0; 12],
+            lo: [0; 12],
             hi: [0; 12],
         };
         for f in 0..12 {
             fc.axis[f] = face_axis(f);
-            fc.hi[f] = offsets[face_octants(f).1];
+            (fc.lo[f], fc.hi[f]) = face_octants(f);
         }
         fc
     }
@@ -79,8 +84,32 @@ impl<T: Scalar> March<'_, T> {
 
     /// Grid vertices whose octant-0 cell lies in words `w0..w1`.
     fn task(&self, w0: usize, w1: usize) -> Part {
-        let offsets = self.act.grid.octant_offsets();
-        let fc = FaceCells::new(&offsets);
+        #[cfg(target_arch = "x86_64")]
+        if cpu::fast() {
+            // SAFETY: the CPU has the features (checked just above).
+            return unsafe { self.task_fast(w0, w1) };
+        }
+        self.task_body(w0, w1)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "popcnt,bmi1,bmi2,lzcnt,avx2")]
+    unsafe fn task_fast(&self, w0: usize, w1: usize) -> Part {
+        self.task_body(w0, w1)
+    }
+
+    /// The march over words `w0..w1`. Face ids are counted off along the words:
+    /// the quarter-face `f` of the vertex at cell `q` is the face on the low side
+    /// of cell `q + offset(hi(f))`, and a word of those faces is the XOR of the
+    /// octant windows `hi(f)` and `lo(f)`; `next[f]` is the id of the first face
+    /// of the stream at or after the current word (a [`Faces::rank`] at the
+    /// task's start, then advanced by each word's count). Words where all eight
+    /// windows agree everywhere have no boundary faces and are skipped.
+    #[inline(always)]
+    fn task_body(&self, w0: usize, w1: usize) -> Part {
+        let grid = &self.act.grid;
+        let offsets = grid.octant_offsets();
+        let fc = FaceCells::new();
         let table = Table::get();
         // a closed surface has about two triangles per point: room for them up
         // front, instead of growing by copies (untouched room costs nothing)
@@ -91,14 +120,33 @@ impl<T: Scalar> March<'_, T> {
             tris: Vec::with_capacity(2 * faces + 16),
             ..Part::default()
         };
-        let mut rows = Rows::new(&self.act.grid, w0 * 64);
+        let mut rows = Rows::new(grid, w0 * 64);
         let edge_octants: [[usize; 4]; 6] = std::array::from_fn(|e| edge_star(e).0);
+        let mut next: [u32; 12] =
+            std::array::from_fn(|f| self.faces.rank(fc.axis[f], w0 * 64 + offsets[fc.hi[f]]));
+        // window of octant o at word w: bits[w + word[o]] and the next, shifted
+        let word_shift: [(usize, u32); 8] = offsets.map(|o| {
+            let bit = self.act.guard + o;
+            (bit >> 6, (bit & 63) as u32)
+        });
+        let bits = &self.act.bits[..];
+        let mut win = [0u64; 8];
+        let mut fw = [0u64; 12];
         for w in w0..w1 {
-            let q0 = (w * 64) as isize;
-            let win = offsets.map(|o| self.act.window(q0 + o as isize));
-            let any = win.iter().fold(0, |a, &b| a | b);
-            let all = win.iter().fold(!0, |a, &b| a & b);
+            let (mut any, mut all) = (0, !0);
+            for o in 0..8 {
+                let (d, s) = word_shift[o];
+                win[o] = funnel(bits, w + d, s);
+                any |= win[o];
+                all &= win[o];
+            }
             let mut todo = any & !all;
+            if todo == 0 {
+                continue;
+            }
+            for f in 0..12 {
+                fw[f] = win[fc.hi[f]] ^ win[fc.lo[f]];
+            }
             while todo != 0 {
                 let t = todo.trailing_zeros() as usize;
                 todo &= todo - 1;
@@ -106,16 +154,25 @@ impl<T: Scalar> March<'_, T> {
                 for (o, wo) in win.iter().enumerate() {
                     mask |= ((wo >> t) as u8 & 1) << o;
                 }
-                let q = w * 64 + t;
                 let connect = match self.mode {
                     Mode::Disconnect => 0,
                     Mode::Connect => 0x3f,
                     Mode::Mixed => match table.ambiguous(mask) {
                         0 => 0,
-                        amb => self.mixed_connect(rows.coords(q), amb, &edge_octants),
+                        amb => self.mixed_connect(rows.coords(w * 64 + t), amb, &edge_octants),
                     },
                 };
-                self.emit(&mut part, table.entry(mask, connect), q, &fc);
+                let entry = table.entry(mask, connect);
+                let below = (1u64 << t) - 1;
+                let mut id = [0u32; 12];
+                for &f in &entry.faces[..entry.face_count()] {
+                    let f = f as usize;
+                    id[f] = next[f] + (fw[f] & below).count_ones();
+                }
+                self.emit(&mut part, entry, &id);
+            }
+            for f in 0..12 {
+                next[f] += fw[f].count_ones();
             }
         }
         part
@@ -151,13 +208,9 @@ impl<T: Scalar> March<'_, T> {
         connect
     }
 
-    /// Emits the cycles of one vertex.
-    fn emit(&self, part: &mut Part, entry: &CellEntry, q: usize, fc: &FaceCells) {
-        let mut id = [0u32; 12];
-        for &f in &entry.faces[..entry.face_count()] {
-            let f = f as usize;
-            id[f] = self.faces.id(fc.axis[f], q + fc.hi[f]);
-        }
+    /// Emits the cycles of one vertex (`id`: of its boundary quarter-faces).
+    #[inline(always)]
+    fn emit(&self, part: &mut Part, entry: &CellEntry, id: &[u32; 12]) {
         for i in 0..entry.cycles as usize {
             part.counts.add(entry.types[i], entry.cycle(i).len());
         }
@@ -170,7 +223,7 @@ impl<T: Scalar> March<'_, T> {
             Decompose::H => {
                 for i in 0..entry.cycles as usize {
                     let cycle = entry.cycle(i);
-                    if cycle.len() == 3 || !self.centroid_fan(part, cycle, &id) {
+                    if cycle.len() == 3 || !self.centroid_fan(part, cycle, id) {
                         for t in entry.cycle_tris(i) {
                             part.tris.push(t.map(|f| id[f as usize]));
                         }
