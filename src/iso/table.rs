@@ -88,7 +88,7 @@ impl CellEntry {
     }
 
     /// Number of boundary quarter-faces.
-    #[inline(always)]
+    #[cfg(test)]
     pub fn face_count(&self) -> usize {
         if self.cycles == 0 {
             0
