@@ -25,6 +25,8 @@
 //!   the surface are sparse in memory.
 //! - [`Rows`]: padded coordinates of increasing indices without divisions.
 
+use std::mem::MaybeUninit;
+
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -185,7 +187,13 @@ pub(crate) fn funnel(bits: &[u64], w: usize, s: u32) -> u64 {
 
 /// Fills the activity words of task `chunk` (of [`WORDS_PER_TASK`] words);
 /// returns the number of active cells among them.
-fn activity_task<T: Scalar>(values: &[T], grid: &Padded, chunk: usize, words: &mut [u64], cut: T) -> u64 {
+fn activity_task<T: Scalar>(
+    values: &[T],
+    grid: &Padded,
+    chunk: usize,
+    words: &mut [u64],
+    cut: T,
+) -> u64 {
     #[cfg(target_arch = "x86_64")]
     if cpu::fast() {
         // SAFETY: the CPU has the features (checked just above).
@@ -396,7 +404,10 @@ impl<'a> Faces<'a> {
     /// Id of the boundary face on the low side of padded cell `q` along `axis`.
     #[cfg(test)]
     pub fn id(&self, axis: usize, q: usize) -> u32 {
-        debug_assert!(self.word(axis, q >> 6) >> (q & 63) & 1 == 1, "not a boundary face");
+        debug_assert!(
+            self.word(axis, q >> 6) >> (q & 63) & 1 == 1,
+            "not a boundary face"
+        );
         self.rank(axis, q)
     }
 
@@ -480,11 +491,14 @@ pub(crate) fn support_points<T: Scalar, P: Fn(DVec3) -> DVec3 + Sync>(
     displace: bool,
     place: P,
 ) -> Vec<DVec3> {
-    let mut out = vec![DVec3::ZERO; faces.total as usize];
+    // written by the tasks straight into the spare capacity: no zeroing
+    // first, and the new memory is touched by both threads
+    let total = faces.total as usize;
+    let mut out: Vec<DVec3> = Vec::with_capacity(total);
     // one task does the three axes of its cells, so that the samples it
     // reads are still in cache for the second and third axis
-    let mut ranges: Vec<[&mut [DVec3]; 3]> = Vec::with_capacity(faces.tasks());
-    let mut rest: &mut [DVec3] = &mut out;
+    let mut ranges: Vec<[&mut [MaybeUninit<DVec3>]; 3]> = Vec::with_capacity(faces.tasks());
+    let mut rest = &mut out.spare_capacity_mut()[..total];
     for a in 0..3 {
         for task in 0..faces.tasks() {
             let (head, tail) = rest.split_at_mut(faces.task_count(a, task));
@@ -499,6 +513,9 @@ pub(crate) fn support_points<T: Scalar, P: Fn(DVec3) -> DVec3 + Sync>(
     ranges.into_par_iter().enumerate().for_each(|(task, outs)| {
         task_points(values, act, faces, task, iso, displace, &place, outs);
     });
+    // SAFETY: the ranges cover the first `total` elements, and every task
+    // wrote every element of its ranges (`task_points_body` asserts it).
+    unsafe { out.set_len(total) };
     out
 }
 
@@ -512,7 +529,7 @@ fn task_points<T: Scalar, P: Fn(DVec3) -> DVec3>(
     iso: f64,
     displace: bool,
     place: &P,
-    outs: [&mut [DVec3]; 3],
+    outs: [&mut [MaybeUninit<DVec3>]; 3],
 ) {
     #[cfg(target_arch = "x86_64")]
     if cpu::fast() {
@@ -533,7 +550,7 @@ unsafe fn task_points_fast<T: Scalar, P: Fn(DVec3) -> DVec3>(
     iso: f64,
     displace: bool,
     place: &P,
-    outs: [&mut [DVec3]; 3],
+    outs: [&mut [MaybeUninit<DVec3>]; 3],
 ) {
     task_points_body(values, act, faces, task, iso, displace, place, outs)
 }
@@ -550,7 +567,7 @@ fn task_points_body<T: Scalar, P: Fn(DVec3) -> DVec3>(
     iso: f64,
     displace: bool,
     place: &P,
-    outs: [&mut [DVec3]; 3],
+    outs: [&mut [MaybeUninit<DVec3>]; 3],
 ) {
     let words = faces.words();
     let (w0, w1) = (
@@ -581,7 +598,9 @@ fn task_points_body<T: Scalar, P: Fn(DVec3) -> DVec3>(
                 // the samples of the first and last cells with a face, and
                 // the lines between; for faces along z the slice below too
                 let c0 = ahead_rows.coords(wa * 64 + any.trailing_zeros() as usize);
-                let c1 = ahead_rows.clone().coords(wa * 64 + 63 - any.leading_zeros() as usize);
+                let c1 = ahead_rows
+                    .clone()
+                    .coords(wa * 64 + 63 - any.leading_zeros() as usize);
                 if let (Some(v0), Some(v1)) = (voxel_near(&d, c0), voxel_near(&d, c1)) {
                     prefetch_range(values, v0, v1);
                     if fa[2] != 0 && v0 >= slice {
@@ -606,12 +625,18 @@ fn task_points_body<T: Scalar, P: Fn(DVec3) -> DVec3>(
                 let q = w * 64 + t as usize;
                 let hi = r.coords(q);
                 let hi_active = here >> t & 1 == 1;
-                out[n[a]] = place(support_point(values, act, a, hi, hi_active, iso, displace));
+                out[n[a]].write(place(support_point(
+                    values, act, a, hi, hi_active, iso, displace,
+                )));
                 n[a] += 1;
             }
         }
     }
-    debug_assert!((0..3).all(|a| n[a] == outs[a].len()));
+    // every element written (what makes the output initialised)
+    assert!(
+        (0..3).all(|a| n[a] == outs[a].len()),
+        "support points missing"
+    );
 }
 
 /// Words of face bits between asking for samples and using them.

@@ -113,10 +113,18 @@ impl<T: Scalar> March<'_, T> {
         let range = |t: usize| (t * WORDS_PER_TASK, ((t + 1) * WORDS_PER_TASK).min(words));
         let faces = |t: usize| {
             (0..3)
-                .map(|a| if t < tasks { self.faces.task_count(a, t) } else { 0 })
+                .map(|a| {
+                    if t < tasks {
+                        self.faces.task_count(a, t)
+                    } else {
+                        0
+                    }
+                })
                 .sum::<usize>()
         };
-        let room: Vec<usize> = (0..tasks).map(|t| 2 * (faces(t) + faces(t + 1)) + 64).collect();
+        let room: Vec<usize> = (0..tasks)
+            .map(|t| 2 * (faces(t) + faces(t + 1)) + 64)
+            .collect();
         let mut tris: Vec<[u32; 3]> = Vec::with_capacity(room.iter().sum());
         let mut slots = Vec::with_capacity(tasks);
         let mut rest = tris.spare_capacity_mut();
@@ -281,7 +289,8 @@ impl<T: Scalar> March<'_, T> {
         }
         for (mask, &n) in by_mask.iter().enumerate() {
             if n > 0 {
-                part.counts.add_entry(table.entry(mask as u8, usual), n as u64);
+                part.counts
+                    .add_entry(table.entry(mask as u8, usual), n as u64);
             }
         }
         part.tris = out.len + out.spill.len();
