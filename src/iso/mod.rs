@@ -17,6 +17,7 @@
 //! outside the volume counts as inactive, so every surface closes.
 //!
 //! Files of this module:
+//! - `cpu.rs`: run-time dispatch of the hot loops to popcnt/AVX2 code;
 //! - `table.rs`: the 2×2×2 cell table (cycles, L triangulations, the 14 types);
 //! - `grid.rs`: activity bits, boundary-face ids (rank bitsets), support points;
 //! - `surface.rs`: the parallel march over grid vertices;
@@ -38,6 +39,7 @@
 //! ```
 
 pub mod contour_io;
+mod cpu;
 pub mod diconex;
 mod grid;
 pub mod image2d;
@@ -262,8 +264,8 @@ pub fn iso_surface<T: Scalar>(
         mode: opts.mode,
         decompose: opts.decompose,
     };
-    let parts = march.run();
-    let mut s = assemble(points, physical, parts, geometry, act.active);
+    let (triangles, parts) = march.run();
+    let mut s = assemble(points, physical, triangles, parts, geometry, act.active);
     s.stats.seconds = start.elapsed().as_secs_f64();
     Ok(s)
 }
@@ -306,50 +308,52 @@ pub fn iso_labels() -> Vec<LabelInfo> {
 }
 
 /// Merges the parts into one mesh in physical space (`physical`: the points
-/// are there already, and there are no centroids).
+/// are there already, and there are no centroids). `triangles`: of all parts,
+/// in order, as the march left them.
 fn assemble(
     mut points: Vec<DVec3>,
     physical: bool,
+    mut triangles: Vec<[u32; 3]>,
     parts: Vec<surface::Part>,
     geometry: Geometry,
     active: u64,
 ) -> IsoSurface {
     let n_faces = points.len() as u32;
     let mut counts = stats::TypeCounts::default();
-    let mut bases = Vec::with_capacity(parts.len());
-    let mut n_tris = 0;
     let mut n_centroids = 0u32;
+    let mut cbases = Vec::with_capacity(parts.len());
     for p in &parts {
         counts.merge(&p.counts);
-        bases.push((n_tris, n_faces + n_centroids));
-        n_tris += p.tris.len();
+        cbases.push(n_faces + n_centroids);
         n_centroids += p.centroids.len() as u32;
     }
     let mirrored = geometry.is_mirroring();
-    let mut triangles = vec![[0u32; 3]; n_tris];
-    // split the output into the parts' ranges and fill them in parallel
-    let mut slices = Vec::with_capacity(parts.len());
-    let mut rest: &mut [[u32; 3]] = &mut triangles;
-    for p in &parts {
-        let (head, tail) = rest.split_at_mut(p.tris.len());
-        slices.push(head);
-        rest = tail;
+    if mirrored || n_centroids > 0 {
+        // centroid references to point indices, orientation for mirroring
+        // geometries: in place, the parts' ranges in parallel
+        let mut slices = Vec::with_capacity(parts.len());
+        let mut rest: &mut [[u32; 3]] = &mut triangles;
+        for p in &parts {
+            let (head, tail) = rest.split_at_mut(p.tris);
+            slices.push(head);
+            rest = tail;
+        }
+        slices
+            .into_par_iter()
+            .zip(&cbases)
+            .for_each(|(tris, &cbase)| {
+                for o in tris.iter_mut() {
+                    let t = o.map(|v| {
+                        if v & surface::CENTROID != 0 {
+                            cbase + (v & !surface::CENTROID)
+                        } else {
+                            v
+                        }
+                    });
+                    *o = if mirrored { [t[0], t[2], t[1]] } else { t };
+                }
+            });
     }
-    slices
-        .into_par_iter()
-        .zip(parts.par_iter().zip(&bases))
-        .for_each(|(out, (p, &(_, cbase)))| {
-            for (o, t) in out.iter_mut().zip(&p.tris) {
-                let t = t.map(|v| {
-                    if v & surface::CENTROID != 0 {
-                        cbase + (v & !surface::CENTROID)
-                    } else {
-                        v
-                    }
-                });
-                *o = if mirrored { [t[0], t[2], t[1]] } else { t };
-            }
-        });
     for p in &parts {
         points.extend_from_slice(&p.centroids);
     }

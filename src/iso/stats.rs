@@ -2,7 +2,7 @@
 //! number of N-cycles for N = 3 … 12 (and per cycle type), support points,
 //! triangles and the extraction time.
 
-use super::table::{NO_TYPE, cycle_types};
+use super::table::{CellEntry, NO_TYPE, cycle_types};
 
 /// Cycles counted by type id (14 listed types, then "other") and by length.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -12,11 +12,15 @@ pub(crate) struct TypeCounts {
 }
 
 impl TypeCounts {
+    /// Adds the cycles of a table entry, `n` times.
     #[inline]
-    pub fn add(&mut self, ty: u8, len: usize) {
-        let i = if ty == NO_TYPE { 14 } else { ty as usize };
-        self.types[i] += 1;
-        self.lengths[len] += 1;
+    pub fn add_entry(&mut self, entry: &CellEntry, n: u64) {
+        for i in 0..entry.cycles as usize {
+            let ty = entry.types[i];
+            let t = if ty == NO_TYPE { 14 } else { ty as usize };
+            self.types[t] += n;
+            self.lengths[entry.cycle(i).len()] += n;
+        }
     }
 
     pub fn merge(&mut self, other: &TypeCounts) {

@@ -49,7 +49,9 @@ pub(crate) const NO_TYPE: u8 = u8::MAX;
 pub(crate) const MAX_TRIS: usize = 10;
 
 /// One configuration: its cycles (as quarter-face ids) and their L triangles.
+/// One cache line each.
 #[derive(Clone, Copy, Debug, Default)]
+#[repr(align(64))]
 pub(crate) struct CellEntry {
     /// Quarter-face ids of all cycles, concatenated, in cycle order.
     pub faces: [u8; MAX_CYCLE],
@@ -68,14 +70,14 @@ pub(crate) struct CellEntry {
 
 impl CellEntry {
     /// Faces of cycle `i`.
-    #[inline]
+    #[inline(always)]
     pub fn cycle(&self, i: usize) -> &[u8] {
         let start = if i == 0 { 0 } else { self.ends[i - 1] as usize };
         &self.faces[start..self.ends[i] as usize]
     }
 
     /// L triangles of cycle `i`.
-    #[inline]
+    #[inline(always)]
     pub fn cycle_tris(&self, i: usize) -> &[[u8; 3]] {
         let start = if i == 0 {
             0
@@ -86,7 +88,7 @@ impl CellEntry {
     }
 
     /// Number of boundary quarter-faces.
-    #[inline]
+    #[cfg(test)]
     pub fn face_count(&self) -> usize {
         if self.cycles == 0 {
             0
@@ -96,7 +98,7 @@ impl CellEntry {
     }
 
     /// All L triangles.
-    #[inline]
+    #[inline(always)]
     pub fn all_tris(&self) -> &[[u8; 3]] {
         let n = if self.cycles == 0 {
             0
@@ -141,9 +143,9 @@ impl Table {
     }
 
     /// Entry of a mask with the given joined half-edges.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn entry(&self, mask: u8, connect: u8) -> &CellEntry {
-        &self.entries[(mask as usize) << 6 | (connect & 0x3f) as usize]
+        &self.entries[((connect & 0x3f) as usize) << 8 | mask as usize]
     }
 
     pub(crate) fn types(&self) -> &[CycleType] {
@@ -151,7 +153,7 @@ impl Table {
     }
 
     /// The ambiguous half-edges of a mask, as [`ambiguous_edges`].
-    #[inline]
+    #[inline(always)]
     pub(crate) fn ambiguous(&self, mask: u8) -> u8 {
         self.ambiguous[mask as usize]
     }
@@ -512,11 +514,13 @@ fn build() -> Table {
         canonical_entries[(c.mask as usize) << 6 | c.connect as usize] =
             make_entry(c, &forms, &mut memo);
     }
-    // Non-canonical connect sets copy the entry of their ambiguous part.
+    // Non-canonical connect sets copy the entry of their ambiguous part. By
+    // connect set, then mask: the entries of one connect set (in the global
+    // modes, the only ones used) are contiguous.
     let entries = (0..256 * 64)
         .map(|i| {
-            let mask = (i >> 6) as u8;
-            let connect = (i & 63) as u8 & ambiguous_edges(mask);
+            let mask = (i & 255) as u8;
+            let connect = (i >> 8) as u8 & ambiguous_edges(mask);
             canonical_entries[(mask as usize) << 6 | connect as usize]
         })
         .collect();
