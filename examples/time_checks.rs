@@ -1,0 +1,153 @@
+//! Times the geometry checks of the pipeline on a volume file:
+//! `cargo run --release --example time_checks -- VOLUME [REPS] [DUMP_DIR]`.
+//!
+//! Extracts and remeshes the volume (as `septa extract` does), then times
+//! - the self-intersection check of the smoothed extraction (what the
+//!   untangling after smoothing runs), of a jittered copy of it (many
+//!   crossings), the subset variant on it (a BVH reused, every 7th triangle),
+//! - the self-intersection check of the remeshed mesh (repair, validator),
+//! - `quality()` of the remeshed mesh against the extraction.
+//!
+//! Each is run `REPS` times (default 3); the best time is printed. With
+//! `DUMP_DIR`, the pair lists and the quality report are written there (to
+//! compare two builds with `cmp`).
+use glam::DVec3;
+use septa::config::Resolved;
+use septa::extract::{ExtractOptions, extract, label_infos};
+use septa::mesh::intersect::{intersections_in, self_intersections, triangle_bvh};
+use septa::mesh::quality::{QualityOptions, quality};
+use septa::remesh::{RemeshParams, remesh};
+use std::io::Write;
+use std::time::Instant;
+
+fn best<T>(reps: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+    let mut out = None;
+    let mut best = f64::INFINITY;
+    for _ in 0..reps {
+        let t = Instant::now();
+        let r = f();
+        best = best.min(t.elapsed().as_secs_f64());
+        out = Some(r);
+    }
+    (best, out.unwrap())
+}
+
+fn dump(dir: Option<&str>, name: &str, pairs: &[(u32, u32)]) {
+    let Some(dir) = dir else { return };
+    let mut f = std::io::BufWriter::new(
+        std::fs::File::create(format!("{dir}/{name}.txt")).expect("dump file"),
+    );
+    for (a, b) in pairs {
+        writeln!(f, "{a} {b}").unwrap();
+    }
+}
+
+/// FNV-1a over the pair list (to compare runs at a glance).
+fn hash(pairs: &[(u32, u32)]) -> u64 {
+    let mut h = 0xcbf29ce484222325u64;
+    for &(a, b) in pairs {
+        for x in [a, b] {
+            for byte in x.to_le_bytes() {
+                h = (h ^ byte as u64).wrapping_mul(0x100000001b3);
+            }
+        }
+    }
+    h
+}
+
+fn main() {
+    let mut args = std::env::args().skip(1);
+    let path = args.next().expect("volume");
+    let reps: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(3);
+    let dir = args.next();
+    let dir = dir.as_deref();
+    let vol = septa::io::read_label_volume(path.as_ref(), &Default::default()).unwrap();
+    let pre = septa::preprocess::preprocess(&vol, &Resolved::defaults(&vol));
+    let mesh = extract(
+        &pre.refined,
+        label_infos(&vol, None),
+        *vol.geometry(),
+        &ExtractOptions::default(),
+    )
+    .unwrap();
+    let params = RemeshParams {
+        target_edge: RemeshParams::default_target(vol.geometry()),
+        ..Default::default()
+    };
+    let t = Instant::now();
+    let out = remesh(&mesh, &params).unwrap();
+    println!(
+        "threads {}; remesh {:.2} s; {:?}",
+        rayon::current_num_threads(),
+        t.elapsed().as_secs_f64(),
+        out.timings
+    );
+
+    let sm = &out.smoothed;
+    let (s, pairs) = best(reps, || self_intersections(&sm.positions, &sm.triangles));
+    println!(
+        "smoothed    {:>8} tris: self-check {:.3} s, {} pairs, hash {:016x}",
+        sm.triangles.len(),
+        s,
+        pairs.len(),
+        hash(&pairs)
+    );
+    dump(dir, "smoothed", &pairs);
+
+    // jittered copy: many crossings
+    let mut x = 0x9e3779b97f4a7c15u64;
+    let mut next = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    let jit: Vec<DVec3> = sm
+        .positions
+        .iter()
+        .map(|p| *p + DVec3::new(next(), next(), next()) * 0.3)
+        .collect();
+    let (s, pairs) = best(reps, || self_intersections(&jit, &sm.triangles));
+    println!(
+        "jittered    {:>8} tris: self-check {:.3} s, {} pairs, hash {:016x}",
+        sm.triangles.len(),
+        s,
+        pairs.len(),
+        hash(&pairs)
+    );
+    dump(dir, "jittered", &pairs);
+    let bvh = triangle_bvh(&jit, &sm.triangles);
+    let subset: Vec<u32> = (0..sm.triangles.len() as u32).step_by(7).collect();
+    let (s, pairs) = best(reps, || {
+        intersections_in(&jit, &sm.triangles, &bvh, Some(&subset))
+    });
+    println!(
+        "jit. subset {:>8} tris: check {:.3} s, {} pairs, hash {:016x}",
+        subset.len(),
+        s,
+        pairs.len(),
+        hash(&pairs)
+    );
+    dump(dir, "jittered_subset", &pairs);
+
+    let m = &out.mesh;
+    let (s, pairs) = best(reps, || self_intersections(&m.positions, &m.triangles));
+    println!(
+        "remeshed    {:>8} tris: self-check {:.3} s, {} pairs, hash {:016x}",
+        m.triangles.len(),
+        s,
+        pairs.len(),
+        hash(&pairs)
+    );
+    dump(dir, "remeshed", &pairs);
+
+    let opts = QualityOptions {
+        target_edge_mm: params.target_edge,
+    };
+    let (s, q) = best(reps, || quality(m, Some(&mesh), &opts));
+    println!("quality(): {s:.3} s");
+    let json = serde_json::to_string_pretty(&q).unwrap();
+    if let Some(dir) = dir {
+        std::fs::write(format!("{dir}/quality.json"), &json).unwrap();
+    }
+}
