@@ -349,51 +349,372 @@ pub fn triangle_box(positions: &[DVec3], t: [u32; 3]) -> (DVec3, DVec3) {
     (a.min(b).min(c) - pad, a.max(b).max(c) + pad)
 }
 
-/// [`intersections_of`] with a BVH over boxes that contain the triangles as
-/// they are now (built earlier, possibly over larger boxes: it is only used to
-/// find candidates).
+/// [`intersections_of`] with a BVH whose boxes contain the triangles as they
+/// are now (built earlier, possibly over larger boxes: it is only used to find
+/// candidates).
+///
+/// The answer is exactly the pairs whose [`triangle_box`]es overlap and which
+/// [`triangles_intersect`] (called with the subset member first when only one
+/// of the two is in `subset`, else with the smaller id first), sorted; it does
+/// not depend on the number of threads.
+///
+/// The whole mesh (and large subsets) is checked by one traversal of the tree
+/// against itself, over node and triangle boxes recomputed for the current
+/// positions (in `f32`, rounded outward), so only pairs of triangles whose
+/// boxes overlap reach the exact test. Small subsets query the tree once per
+/// member.
 pub fn intersections_in(
     positions: &[DVec3],
     triangles: &[[u32; 3]],
     bvh: &Bvh,
     subset: Option<&[u32]>,
 ) -> Vec<(u32, u32)> {
-    let all: Vec<u32>;
-    let (ids, in_subset): (&[u32], Option<Vec<bool>>) = match subset {
-        Some(s) => {
-            let mut mark = vec![false; triangles.len()];
-            for &i in s {
-                mark[i as usize] = true;
+    assert_eq!(bvh.items.len(), triangles.len(), "a BVH over the triangles");
+    if triangles.is_empty() {
+        return Vec::new();
+    }
+    let mark: Option<Vec<bool>> = subset.map(|s| {
+        let mut mark = vec![false; triangles.len()];
+        for &i in s {
+            mark[i as usize] = true;
+        }
+        mark
+    });
+    let mut pairs = match subset {
+        Some(s) if s.len() * SMALL_SUBSET < triangles.len() => {
+            let mark = mark.as_deref().expect("subset marks");
+            let mut ids = s.to_vec();
+            ids.par_sort_unstable();
+            ids.dedup();
+            match query_margin(bvh) {
+                Some(margin) => ids
+                    .par_iter()
+                    .flat_map_iter(|&i| query_pairs(positions, triangles, bvh, mark, margin, i))
+                    .collect(),
+                None => SelfPairs::new(positions, triangles, bvh, Some(mark)).run(),
             }
-            (s, Some(mark))
         }
-        None => {
-            all = (0..triangles.len() as u32).collect();
-            (&all, None)
-        }
+        _ => SelfPairs::new(positions, triangles, bvh, mark.as_deref()).run(),
     };
-    let mut pairs: Vec<(u32, u32)> = ids
-        .par_iter()
-        .flat_map_iter(|&i| {
-            let mut hits = Vec::new();
-            let (lo, hi) = triangle_box(positions, triangles[i as usize]);
-            bvh.query(lo, hi, |j| {
-                // each pair once: by the smaller id, or by the subset member
-                let counted_here = match &in_subset {
-                    None => j > i,
-                    Some(mark) => !mark[j as usize] || j > i,
-                };
-                if counted_here
-                    && triangles_intersect(positions, triangles[i as usize], triangles[j as usize])
-                {
-                    hits.push((i.min(j), i.max(j)));
-                }
-            });
-            hits
-        })
-        .collect();
-    pairs.sort_unstable();
+    pairs.par_sort_unstable();
     pairs
+}
+
+/// A subset smaller than the triangles over this is checked by one query per
+/// member.
+const SMALL_SUBSET: usize = 64;
+
+/// Item count above which a subtree (or pair of subtrees) is split between
+/// threads.
+const PARALLEL_PAIRS: usize = 1 << 12;
+
+/// Whether boxes `a` and `b` overlap (closed; boxes with NaN overlap all).
+#[inline]
+fn boxes_overlap(a: (DVec3, DVec3), b: (DVec3, DVec3)) -> bool {
+    !(a.0.cmpgt(b.1).any() || a.1.cmplt(b.0).any())
+}
+
+/// The exact test of the candidate pair (`i`, `j`): their boxes overlap and
+/// the triangles intersect. `first` is the triangle passed first to
+/// [`triangles_intersect`].
+#[inline]
+fn exact_pair(positions: &[DVec3], triangles: &[[u32; 3]], first: u32, second: u32) -> bool {
+    let (s, t) = (triangles[first as usize], triangles[second as usize]);
+    // the boxes of triangles sharing a vertex overlap (both hold it)
+    (s.iter().any(|v| t.contains(v))
+        || boxes_overlap(triangle_box(positions, s), triangle_box(positions, t)))
+        && triangles_intersect(positions, s, t)
+}
+
+/// The order in which candidate (`i`, `j`) is tested, or `None` when neither
+/// is in the subset.
+#[inline]
+fn test_order(mark: Option<&[bool]>, i: u32, j: u32) -> Option<(u32, u32)> {
+    match mark.map(|m| (m[i as usize], m[j as usize])) {
+        Some((false, false)) => None,
+        Some((true, false)) => Some((i, j)),
+        Some((false, true)) => Some((j, i)),
+        _ => Some((i.min(j), i.max(j))),
+    }
+}
+
+/// How much to grow a triangle's padded box to query `bvh` (whose boxes hold
+/// the triangles unpadded) so that every triangle whose padded box overlaps is
+/// found: the largest pad of a triangle inside the root box. `None` when the
+/// root box is not finite.
+fn query_margin(bvh: &Bvh) -> Option<f64> {
+    let root = bvh.nodes[0];
+    let m = root.lo.abs().max(root.hi.abs()).max_element();
+    let margin = 1e-9 * (1.0 + m) * 1.001;
+    margin.is_finite().then_some(margin)
+}
+
+/// Pairs of subset member `i` with the triangles its box meets (each pair of
+/// members once: by the smaller id).
+fn query_pairs(
+    positions: &[DVec3],
+    triangles: &[[u32; 3]],
+    bvh: &Bvh,
+    mark: &[bool],
+    margin: f64,
+    i: u32,
+) -> Vec<(u32, u32)> {
+    let mut hits = Vec::new();
+    let (lo, hi) = triangle_box(positions, triangles[i as usize]);
+    let m = DVec3::splat(margin);
+    bvh.query(lo - m, hi + m, |j| {
+        if (!mark[j as usize] || j > i) && exact_pair(positions, triangles, i, j) {
+            hits.push((i.min(j), i.max(j)));
+        }
+    });
+    hits
+}
+
+/// An axis-aligned box in `f32`.
+#[derive(Clone, Copy)]
+struct Box32 {
+    lo: [f32; 3],
+    hi: [f32; 3],
+}
+
+impl Box32 {
+    const EMPTY: Box32 = Box32 {
+        lo: [f32::MAX; 3],
+        hi: [f32::MIN; 3],
+    };
+
+    /// The smallest `f32` box holding `[lo, hi]` (NaN: everything).
+    fn outward(lo: DVec3, hi: DVec3) -> Self {
+        Box32 {
+            lo: lo.to_array().map(f32_down),
+            hi: hi.to_array().map(f32_up),
+        }
+    }
+
+    #[inline]
+    fn union(self, o: Box32) -> Box32 {
+        Box32 {
+            lo: [0, 1, 2].map(|k| self.lo[k].min(o.lo[k])),
+            hi: [0, 1, 2].map(|k| self.hi[k].max(o.hi[k])),
+        }
+    }
+
+    #[inline]
+    fn overlaps(&self, o: &Box32) -> bool {
+        (self.lo[0] <= o.hi[0])
+            & (o.lo[0] <= self.hi[0])
+            & (self.lo[1] <= o.hi[1])
+            & (o.lo[1] <= self.hi[1])
+            & (self.lo[2] <= o.hi[2])
+            & (o.lo[2] <= self.hi[2])
+    }
+}
+
+/// The largest `f32` not above `x` (NaN: the lowest `f32`).
+pub(crate) fn f32_down(x: f64) -> f32 {
+    let f = x as f32;
+    if f.is_nan() {
+        return f32::MIN;
+    }
+    if (f as f64) <= x {
+        f
+    } else if f == f32::INFINITY {
+        f32::MAX
+    } else {
+        f - (f.abs() * f32::EPSILON).max(f32::MIN_POSITIVE)
+    }
+}
+
+/// The smallest `f32` not below `x` (NaN: the largest `f32`).
+pub(crate) fn f32_up(x: f64) -> f32 {
+    -f32_down(-x)
+}
+
+/// The self-traversal: the tree of a [`Bvh`] with boxes refitted to the
+/// current triangles, walked against itself (node pairs `(a, b)` whose boxes
+/// overlap, each unordered pair once).
+struct SelfPairs<'a> {
+    positions: &'a [DVec3],
+    triangles: &'a [[u32; 3]],
+    bvh: &'a Bvh,
+    /// Per node: its box.
+    boxes: Vec<Box32>,
+    /// Per item slot (leaf order): its triangle's box.
+    item_boxes: Vec<Box32>,
+    /// Per triangle: in the subset; per node: holds a subset member.
+    mark: Option<(&'a [bool], Vec<bool>)>,
+}
+
+impl<'a> SelfPairs<'a> {
+    fn new(
+        positions: &'a [DVec3],
+        triangles: &'a [[u32; 3]],
+        bvh: &'a Bvh,
+        mark: Option<&'a [bool]>,
+    ) -> Self {
+        let item_boxes: Vec<Box32> = bvh
+            .items
+            .par_iter()
+            .map(|&t| {
+                let (lo, hi) = triangle_box(positions, triangles[t as usize]);
+                Box32::outward(lo, hi)
+            })
+            .collect();
+        let nodes = &bvh.nodes;
+        let mut boxes = vec![Box32::EMPTY; nodes.len()];
+        let mut flags = mark.map(|_| vec![false; nodes.len()]);
+        // children come after their parent
+        for ni in (0..nodes.len()).rev() {
+            let n = nodes[ni];
+            let range = n.start as usize..(n.start + n.count) as usize;
+            if n.count > 0 {
+                boxes[ni] = item_boxes[range.clone()]
+                    .iter()
+                    .fold(Box32::EMPTY, |a, b| a.union(*b));
+                if let (Some(f), Some(m)) = (flags.as_mut(), mark) {
+                    f[ni] = bvh.items[range].iter().any(|&t| m[t as usize]);
+                }
+            } else {
+                let c = n.start as usize;
+                boxes[ni] = boxes[c].union(boxes[c + 1]);
+                if let Some(f) = flags.as_mut() {
+                    f[ni] = f[c] || f[c + 1];
+                }
+            }
+        }
+        SelfPairs {
+            positions,
+            triangles,
+            bvh,
+            boxes,
+            item_boxes,
+            mark: mark.zip(flags),
+        }
+    }
+
+    fn run(&self) -> Vec<(u32, u32)> {
+        let mut out = Vec::new();
+        self.within(0, self.bvh.items.len(), &mut out);
+        out
+    }
+
+    #[inline]
+    fn marked(&self, node: usize) -> bool {
+        self.mark.as_ref().is_none_or(|(_, f)| f[node])
+    }
+
+    /// Candidate item slots `a`, `b` (boxes overlapping): the exact test.
+    #[inline]
+    fn pair(&self, a: usize, b: usize, out: &mut Vec<(u32, u32)>) {
+        let (i, j) = (self.bvh.items[a], self.bvh.items[b]);
+        if let Some((first, second)) = test_order(self.mark.as_ref().map(|m| m.0), i, j) {
+            if exact_pair(self.positions, self.triangles, first, second) {
+                out.push((i.min(j), i.max(j)));
+            }
+        }
+    }
+
+    /// Pairs within node `ni` (over `size` items).
+    fn within(&self, ni: usize, size: usize, out: &mut Vec<(u32, u32)>) {
+        if !self.marked(ni) {
+            return;
+        }
+        let n = self.bvh.nodes[ni];
+        if n.count > 0 {
+            let (s, e) = (n.start as usize, (n.start + n.count) as usize);
+            for a in s..e {
+                let ba = self.item_boxes[a];
+                for b in a + 1..e {
+                    if ba.overlaps(&self.item_boxes[b]) {
+                        self.pair(a, b, out);
+                    }
+                }
+            }
+            return;
+        }
+        let (l, r) = (n.start as usize, n.start as usize + 1);
+        let (sl, sr) = (size / 2, size - size / 2);
+        if size >= PARALLEL_PAIRS {
+            let ((mut x, y), z) = rayon::join(
+                || {
+                    rayon::join(
+                        || {
+                            let mut v = Vec::new();
+                            self.within(l, sl, &mut v);
+                            v
+                        },
+                        || {
+                            let mut v = Vec::new();
+                            self.within(r, sr, &mut v);
+                            v
+                        },
+                    )
+                },
+                || {
+                    let mut v = Vec::new();
+                    self.across(l, sl, r, sr, &mut v);
+                    v
+                },
+            );
+            x.extend(y);
+            x.extend(z);
+            out.extend(x);
+        } else {
+            self.within(l, sl, out);
+            self.within(r, sr, out);
+            self.across(l, sl, r, sr, out);
+        }
+    }
+
+    /// Pairs between the disjoint nodes `a` and `b` (over `sa`, `sb` items).
+    fn across(&self, a: usize, sa: usize, b: usize, sb: usize, out: &mut Vec<(u32, u32)>) {
+        if !self.boxes[a].overlaps(&self.boxes[b]) || !(self.marked(a) || self.marked(b)) {
+            return;
+        }
+        let (na, nb) = (self.bvh.nodes[a], self.bvh.nodes[b]);
+        if na.count > 0 && nb.count > 0 {
+            for x in na.start as usize..(na.start + na.count) as usize {
+                let bx = self.item_boxes[x];
+                if !bx.overlaps(&self.boxes[b]) {
+                    continue;
+                }
+                for y in nb.start as usize..(nb.start + nb.count) as usize {
+                    if bx.overlaps(&self.item_boxes[y]) {
+                        self.pair(x, y, out);
+                    }
+                }
+            }
+            return;
+        }
+        // split the larger node (an inner one)
+        let split_a = nb.count > 0 || (na.count == 0 && sa >= sb);
+        let (n, s, other, so) = if split_a {
+            (na, sa, b, sb)
+        } else {
+            (nb, sb, a, sa)
+        };
+        let (l, r) = (n.start as usize, n.start as usize + 1);
+        let (sl, sr) = (s / 2, s - s / 2);
+        if s >= PARALLEL_PAIRS && so >= PARALLEL_PAIRS {
+            let (mut x, y) = rayon::join(
+                || {
+                    let mut v = Vec::new();
+                    self.across(l, sl, other, so, &mut v);
+                    v
+                },
+                || {
+                    let mut v = Vec::new();
+                    self.across(r, sr, other, so, &mut v);
+                    v
+                },
+            );
+            x.extend(y);
+            out.extend(x);
+        } else {
+            self.across(l, sl, other, so, out);
+            self.across(r, sr, other, so, out);
+        }
+    }
 }
 
 /// The validator's check.
@@ -470,7 +791,64 @@ pub fn triangles_intersect(p: &[DVec3], s: [u32; 3], t: [u32; 3]) -> bool {
 
 /// Whether all of `t` lies strictly on one side of the plane of `s` (then they
 /// cannot intersect; shared vertices lie on the plane and do not count).
+///
+/// A vertex of `t` is on the plane when its distance `d` (scaled by the normal
+/// `n = (s1 - s0) × (s2 - s0)`) is at most `eps = 1e-12 |n| max|t_k - s0|`.
+/// `d²` is first compared with `eps²` (no square roots); only when they are
+/// within rounding of each other is `eps` computed (the answer is the same).
 fn separated_by_plane(s: &[DVec3; 3], t: &[DVec3; 3]) -> bool {
+    let n = (s[1] - s[0]).cross(s[2] - s[0]);
+    let r = t.map(|q| q - s[0]);
+    let d = r.map(|q| n.dot(q));
+    let n2 = n.length_squared();
+    let l2 = r[0]
+        .length_squared()
+        .max(r[1].length_squared())
+        .max(r[2].length_squared());
+    // side of each vertex: 1 above, -1 below, 0 on the plane
+    let mut side = [0i8; 3];
+    let mut decided = false;
+    const SAFE: std::ops::RangeInclusive<f64> = 1e-250..=1e250;
+    if SAFE.contains(&n2) && SAFE.contains(&l2) && SAFE.contains(&(n2 * l2)) {
+        // eps² with a margin far above the rounding of either form
+        let e2 = 1e-24 * (n2 * l2);
+        let (above, below) = (e2 * (1.0 + 1e-9), e2 * (1.0 - 1e-9));
+        decided = true;
+        for k in 0..3 {
+            let d2 = d[k] * d[k];
+            if d2 > above {
+                side[k] = if d[k] > 0.0 { 1 } else { -1 };
+            } else if !(d2 < below) {
+                decided = false;
+                break;
+            }
+        }
+    }
+    if !decided {
+        let scale = n.length() * r[0].length().max(r[1].length()).max(r[2].length());
+        let eps = 1e-12 * scale;
+        side = d.map(|x| {
+            if x > eps {
+                1
+            } else if x < -eps {
+                -1
+            } else {
+                0
+            }
+        });
+    }
+    let pos = side.iter().filter(|&&x| x > 0).count();
+    let neg = side.iter().filter(|&&x| x < 0).count();
+    let zero = 3 - pos - neg;
+    // vertices on the plane may be shared ones: separated if the others agree and
+    // those on the plane are vertices of s
+    (pos + zero == 3 && pos > 0 || neg + zero == 3 && neg > 0)
+        && (0..3).all(|k| side[k] != 0 || s.contains(&t[k]))
+}
+
+/// [`separated_by_plane`] as it was written first (the reference for tests).
+#[cfg(test)]
+fn separated_by_plane_reference(s: &[DVec3; 3], t: &[DVec3; 3]) -> bool {
     let n = (s[1] - s[0]).cross(s[2] - s[0]);
     let scale = n.length()
         * (t[0] - s[0])
@@ -482,8 +860,6 @@ fn separated_by_plane(s: &[DVec3; 3], t: &[DVec3; 3]) -> bool {
     let pos = d.iter().filter(|&&x| x > eps).count();
     let neg = d.iter().filter(|&&x| x < -eps).count();
     let zero = 3 - pos - neg;
-    // vertices on the plane may be shared ones: separated if the others agree and
-    // those on the plane are vertices of s
     (pos + zero == 3 && pos > 0 || neg + zero == 3 && neg > 0)
         && (0..3).all(|k| d[k].abs() > eps || s.contains(&t[k]))
 }
@@ -730,5 +1106,218 @@ mod tests {
             && a.hi == b.hi
             && a.start == b.start
             && a.count == b.count));
+    }
+
+    /// A small pseudo-random generator for the tests.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> f64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn below(&mut self, n: usize) -> usize {
+            ((self.next() * n as f64) as usize).min(n - 1)
+        }
+    }
+
+    /// A soup of small triangles over a pool of points that they share (so
+    /// there are shared vertices and edges), some of them on a few planes with
+    /// quantised coordinates (coplanar and collinear cases), some degenerate.
+    fn soup(n: usize, seed: u64) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+        let mut r = Rng(seed);
+        let m = n.max(4);
+        let positions: Vec<DVec3> = (0..m)
+            .map(|k| match k % 3 {
+                // on the plane z = 0 or x = y, coordinates in quarters
+                0 => {
+                    let (x, y) = ((r.below(24) as f64) * 0.25, (r.below(24) as f64) * 0.25);
+                    if r.next() < 0.5 {
+                        DVec3::new(x, y, 0.0)
+                    } else {
+                        DVec3::new(x, x, y)
+                    }
+                }
+                _ => DVec3::new(r.next(), r.next(), r.next()) * 6.0,
+            })
+            .collect();
+        // some points twice (zero-length edges, zero-area triangles)
+        let mut positions = positions;
+        for k in (5..m).step_by(17) {
+            positions[k] = positions[k - 1];
+        }
+        let tris = (0..n)
+            .map(|_| {
+                let a = r.below(m);
+                // near neighbours in the pool share vertices often
+                let mut near = |r: &mut Rng| ((a + 1 + r.below(12)) % m) as u32;
+                [a as u32, near(&mut r), near(&mut r)]
+            })
+            // (a triangle repeating a vertex id is not tested: see the report)
+            .filter(|t: &[u32; 3]| t[0] != t[1] && t[1] != t[2] && t[2] != t[0])
+            .collect();
+        (positions, tris)
+    }
+
+    /// A triangulated grid surface, jittered and folded (many neighbours
+    /// crossing each other).
+    fn crumpled(side: usize, seed: u64, amount: f64) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+        let mut r = Rng(seed);
+        let positions: Vec<DVec3> = (0..side * side)
+            .map(|k| {
+                let (x, y) = ((k % side) as f64, (k / side) as f64);
+                let fold = (x * 0.7).sin() * 2.0;
+                DVec3::new(x, y, fold)
+                    + DVec3::new(r.next() - 0.5, r.next() - 0.5, r.next() - 0.5) * amount
+            })
+            .collect();
+        let mut tris = Vec::new();
+        for y in 0..side - 1 {
+            for x in 0..side - 1 {
+                let v = (y * side + x) as u32;
+                let s = side as u32;
+                tris.push([v, v + 1, v + s + 1]);
+                tris.push([v, v + s + 1, v + s]);
+            }
+        }
+        (positions, tris)
+    }
+
+    /// Pairs by testing every pair: boxes overlap and the triangles intersect
+    /// (the subset member first, else the smaller id).
+    fn brute_force(p: &[DVec3], t: &[[u32; 3]], subset: Option<&[u32]>) -> Vec<(u32, u32)> {
+        let mut mark = vec![subset.is_none(); t.len()];
+        for &i in subset.unwrap_or(&[]) {
+            mark[i as usize] = true;
+        }
+        let mut pairs = Vec::new();
+        for i in 0..t.len() as u32 {
+            for j in i + 1..t.len() as u32 {
+                let (a, b) = match (mark[i as usize], mark[j as usize]) {
+                    (false, false) => continue,
+                    (false, true) => (j, i),
+                    _ => (i, j),
+                };
+                let (s, u) = (t[a as usize], t[b as usize]);
+                if boxes_overlap(triangle_box(p, s), triangle_box(p, u))
+                    && triangles_intersect(p, s, u)
+                {
+                    pairs.push((i, j));
+                }
+            }
+        }
+        pairs
+    }
+
+    fn in_pool<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(f)
+    }
+
+    #[test]
+    fn pairs_match_brute_force_for_any_thread_count() {
+        let mut cases: Vec<(Vec<DVec3>, Vec<[u32; 3]>)> = Vec::new();
+        for (n, seed) in [
+            (0, 1),
+            (1, 2),
+            (3, 3),
+            (40, 4),
+            (300, 5),
+            (1500, 6),
+            (5000, 7),
+        ] {
+            cases.push(soup(n, seed));
+        }
+        for (side, seed, amount) in [(12, 8, 0.0), (30, 9, 0.6), (50, 10, 1.5)] {
+            cases.push(crumpled(side, seed, amount));
+        }
+        let mut total = 0;
+        for (ci, (p, t)) in cases.iter().enumerate() {
+            let n = t.len() as u32;
+            let mut r = Rng(100 + ci as u64);
+            let small: Vec<u32> = (0..n).filter(|_| r.next() < 0.01).collect();
+            let half: Vec<u32> = (0..n).filter(|_| r.next() < 0.5).collect();
+            let mut repeated = small.clone();
+            repeated.extend(small.iter().rev());
+            for subset in [None, Some(&small[..]), Some(&half[..])] {
+                let want = brute_force(p, t, subset);
+                total += want.len();
+                for threads in [1, 2, 3] {
+                    let got = in_pool(threads, || intersections_of(p, t, subset));
+                    assert_eq!(
+                        got,
+                        want,
+                        "case {ci}, {threads} threads, subset {:?}",
+                        subset.map(|s| s.len())
+                    );
+                }
+                // with a BVH over larger boxes (as after a refit over two positions)
+                let moved: Vec<DVec3> = p.iter().map(|q| *q + DVec3::new(0.3, -0.2, 0.1)).collect();
+                let boxes: Vec<(DVec3, DVec3)> = t
+                    .iter()
+                    .map(|&tri| {
+                        let (a, b) = (triangle_box(p, tri), triangle_box(&moved, tri));
+                        (a.0.min(b.0), a.1.max(b.1))
+                    })
+                    .collect();
+                let bvh = Bvh::new(&boxes);
+                assert_eq!(
+                    intersections_in(p, t, &bvh, subset),
+                    want,
+                    "case {ci}, refitted BVH"
+                );
+            }
+            // a subset listing members twice gives each pair once
+            assert_eq!(
+                intersections_of(p, t, Some(&repeated)),
+                brute_force(p, t, Some(&small))
+            );
+        }
+        assert!(total > 1000, "the cases have crossings ({total})");
+    }
+
+    #[test]
+    fn separated_by_plane_matches_its_reference() {
+        let mut r = Rng(77);
+        let mut seen = [0usize; 2];
+        for k in 0..200_000 {
+            let scale = [1e-3, 1.0, 300.0][k % 3];
+            let mut pt = |r: &mut Rng| DVec3::new(r.next(), r.next(), r.next()) * scale;
+            let s = [pt(&mut r), pt(&mut r), pt(&mut r)];
+            let n = (s[1] - s[0]).cross(s[2] - s[0]);
+            let mut t = [pt(&mut r), pt(&mut r), pt(&mut r)];
+            // put vertices on the plane, near the threshold, or on shared vertices
+            for q in t.iter_mut() {
+                match r.below(6) {
+                    0 => *q = s[r.below(3)],
+                    1 | 2 => {
+                        let d = n.dot(*q - s[0]);
+                        let l = (*q - s[0]).length() * 1.5;
+                        let eps = 1e-12 * n.length() * l;
+                        let f = [
+                            0.0,
+                            0.5,
+                            0.999_999_999,
+                            1.0,
+                            1.000_000_001,
+                            2.0,
+                            1.0 + 1e-12,
+                        ][r.below(7)];
+                        let sign = if r.next() < 0.5 { -1.0 } else { 1.0 };
+                        *q += n * ((sign * f * eps - d) / n.length_squared());
+                    }
+                    _ => {}
+                }
+            }
+            let want = separated_by_plane_reference(&s, &t);
+            seen[want as usize] += 1;
+            assert_eq!(separated_by_plane(&s, &t), want, "{s:?} {t:?}");
+        }
+        assert!(seen[0] > 1000 && seen[1] > 1000, "{seen:?}");
     }
 }
