@@ -15,7 +15,7 @@ use glam::DVec3;
 use septa::config::Resolved;
 use septa::extract::{ExtractOptions, extract, label_infos};
 use septa::mesh::intersect::{intersections_in, self_intersections, triangle_bvh};
-use septa::mesh::quality::{QualityOptions, quality};
+use septa::mesh::quality::{NearestBvh, QualityOptions, quality};
 use septa::remesh::{RemeshParams, remesh};
 use std::io::Write;
 use std::time::Instant;
@@ -76,10 +76,66 @@ fn hash(pairs: &[(u32, u32)]) -> u64 {
     h
 }
 
+/// Writes positions and triangles as raw little-endian arrays.
+fn save(path: &str, positions: &[DVec3], triangles: &[[u32; 3]]) {
+    let mut b = Vec::new();
+    b.extend((positions.len() as u64).to_le_bytes());
+    b.extend((triangles.len() as u64).to_le_bytes());
+    for p in positions {
+        for x in p.to_array() {
+            b.extend(x.to_le_bytes());
+        }
+    }
+    for t in triangles {
+        for v in t {
+            b.extend(v.to_le_bytes());
+        }
+    }
+    std::fs::write(path, b).expect("save");
+}
+
+/// Reads what [`save`] wrote.
+fn load(path: &str) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let b = std::fs::read(path).expect("load");
+    let u64_at = |o: usize| u64::from_le_bytes(b[o..o + 8].try_into().unwrap()) as usize;
+    let f64_at = |o: usize| f64::from_le_bytes(b[o..o + 8].try_into().unwrap());
+    let u32_at = |o: usize| u32::from_le_bytes(b[o..o + 4].try_into().unwrap());
+    let (nv, nt) = (u64_at(0), u64_at(8));
+    let positions = (0..nv)
+        .map(|i| {
+            DVec3::new(
+                f64_at(16 + 24 * i),
+                f64_at(24 + 24 * i),
+                f64_at(32 + 24 * i),
+            )
+        })
+        .collect();
+    let base = 16 + 24 * nv;
+    let triangles = (0..nt)
+        .map(|i| [0, 1, 2].map(|k| u32_at(base + 12 * i + 4 * k)))
+        .collect();
+    (positions, triangles)
+}
+
 fn main() {
     let mut args = std::env::args().skip(1);
     let path = args.next().expect("volume");
     let reps: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(3);
+    // `time_checks --saved FILE REPS`: only the self-check of a mesh saved
+    // with TIME_CHECKS_SAVE=FILE (for profiling)
+    if path == "--saved" {
+        let file = args.next().expect("saved mesh");
+        let reps: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(3);
+        let (p, t) = load(&file);
+        let (s, pairs) = best(reps, || self_intersections(&p, &t));
+        println!(
+            "{} tris: self-check {s}, {} pairs, hash {:016x}",
+            t.len(),
+            pairs.len(),
+            hash(&pairs)
+        );
+        return;
+    }
     let dir = args.next();
     let dir = dir.as_deref();
     let vol = septa::io::read_label_volume(path.as_ref(), &Default::default()).unwrap();
@@ -105,6 +161,9 @@ fn main() {
     );
 
     let sm = &out.smoothed;
+    if let Ok(cache) = std::env::var("TIME_CHECKS_SAVE") {
+        save(&cache, &sm.positions, &sm.triangles);
+    }
     let (s, pairs) = best(reps, || self_intersections(&sm.positions, &sm.triangles));
     println!(
         "smoothed    {:>8} tris: self-check {}, {} pairs, hash {:016x}",
@@ -173,6 +232,12 @@ fn main() {
     };
     let (s, q) = best(reps, || quality(m, Some(&mesh), &opts));
     println!("quality(): {s}");
+    let (s, _) = best(reps, || quality(m, None, &opts));
+    println!("  of which without distances {s}");
+    let (s, _) = best(reps, || {
+        NearestBvh::new(&mesh.positions, &mesh.triangles).is_empty()
+    });
+    println!("  and the nearest-point tree {s}");
     let json = serde_json::to_string_pretty(&q).unwrap();
     if let Some(dir) = dir {
         std::fs::write(format!("{dir}/quality.json"), &json).unwrap();

@@ -60,16 +60,54 @@ fn descendants(m: usize) -> usize {
 
 /// An item while building: its box centre (doubled) and id, kept together so
 /// that the median selections read memory in order.
-type Entry = ([f64; 3], u32);
+type Entry<C> = ([C; 3], u32);
+
+/// A coordinate type of build entries (`f64`, or `f32` for less memory
+/// traffic where the exact tree does not matter).
+trait Coord: Copy + Send + Sync + PartialOrd {
+    const LOWEST: Self;
+    const HIGHEST: Self;
+    fn total(&self, o: &Self) -> std::cmp::Ordering;
+    fn min(self, o: Self) -> Self;
+    fn max(self, o: Self) -> Self;
+    fn sub(self, o: Self) -> Self;
+}
+
+macro_rules! coord {
+    ($t:ty) => {
+        impl Coord for $t {
+            const LOWEST: Self = <$t>::MIN;
+            const HIGHEST: Self = <$t>::MAX;
+            #[inline]
+            fn total(&self, o: &Self) -> std::cmp::Ordering {
+                self.total_cmp(o)
+            }
+            #[inline]
+            fn min(self, o: Self) -> Self {
+                <$t>::min(self, o)
+            }
+            #[inline]
+            fn max(self, o: Self) -> Self {
+                <$t>::max(self, o)
+            }
+            #[inline]
+            fn sub(self, o: Self) -> Self {
+                self - o
+            }
+        }
+    };
+}
+coord!(f64);
+coord!(f32);
 
 /// Fills `node` (over `entries`, the first of which is item number `first`)
 /// and its descendants in `below`, whose first node has index `below_index`.
 /// Node boxes are made bottom-up from the item boxes.
-fn build_subtree(
+fn build_subtree<C: Coord>(
     node: &mut Node,
     below: &mut [Node],
     below_index: u32,
-    entries: &mut [Entry],
+    entries: &mut [Entry<C>],
     first: u32,
     boxes: &[(DVec3, DVec3)],
 ) {
@@ -86,16 +124,17 @@ fn build_subtree(
         };
         return;
     }
-    let (clo, chi) = entries
-        .iter()
-        .fold(([f64::MAX; 3], [f64::MIN; 3]), |(mut lo, mut hi), e| {
-            for k in 0..3 {
-                lo[k] = lo[k].min(e.0[k]);
-                hi[k] = hi[k].max(e.0[k]);
-            }
-            (lo, hi)
-        });
-    let ext = [chi[0] - clo[0], chi[1] - clo[1], chi[2] - clo[2]];
+    let (clo, chi) =
+        entries
+            .iter()
+            .fold(([C::HIGHEST; 3], [C::LOWEST; 3]), |(mut lo, mut hi), e| {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(e.0[k]);
+                    hi[k] = hi[k].max(e.0[k]);
+                }
+                (lo, hi)
+            });
+    let ext = [0, 1, 2].map(|k| chi[k].sub(clo[k]));
     let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
         0
     } else if ext[1] >= ext[2] {
@@ -104,9 +143,7 @@ fn build_subtree(
         2
     };
     let mid = entries.len() / 2;
-    entries.select_nth_unstable_by(mid, |a, b| {
-        a.0[axis].total_cmp(&b.0[axis]).then(a.1.cmp(&b.1))
-    });
+    entries.select_nth_unstable_by(mid, |a, b| a.0[axis].total(&b.0[axis]).then(a.1.cmp(&b.1)));
     let (children, rest) = below.split_at_mut(2);
     let (left, right) = children.split_at_mut(1);
     let left_below = descendants(mid);
@@ -153,11 +190,26 @@ impl Bvh {
     /// of an inner node are adjacent, followed by the left child's descendants,
     /// then the right child's).
     pub fn new(boxes: &[(DVec3, DVec3)]) -> Self {
-        let mut entries: Vec<Entry> = boxes
+        let entries: Vec<Entry<f64>> = boxes
             .par_iter()
             .enumerate()
             .map(|(i, b)| ((b.0 + b.1).to_array(), i as u32))
             .collect();
+        Self::from_entries(entries, boxes)
+    }
+
+    /// [`Bvh::new`] splitting at medians of the box centres rounded to `f32`
+    /// (half the memory traffic; a slightly different tree, as good).
+    fn new_f32(boxes: &[(DVec3, DVec3)]) -> Self {
+        let entries: Vec<Entry<f32>> = boxes
+            .par_iter()
+            .enumerate()
+            .map(|(i, b)| ((b.0 + b.1).to_array().map(|x| x as f32), i as u32))
+            .collect();
+        Self::from_entries(entries, boxes)
+    }
+
+    fn from_entries<C: Coord>(mut entries: Vec<Entry<C>>, boxes: &[(DVec3, DVec3)]) -> Self {
         let empty = Node {
             lo: DVec3::ZERO,
             hi: DVec3::ZERO,
@@ -338,7 +390,7 @@ pub fn triangle_bvh(positions: &[DVec3], triangles: &[[u32; 3]]) -> Bvh {
         .par_iter()
         .map(|t| triangle_box(positions, *t))
         .collect();
-    Bvh::new(&boxes)
+    Bvh::new_f32(&boxes)
 }
 
 /// The bounding box of triangle `t`, padded a little so that touching
@@ -530,15 +582,23 @@ pub(crate) fn f32_up(x: f64) -> f32 {
     -f32_down(-x)
 }
 
+/// A node of [`SelfPairs`]: its box (refitted) and, as in [`Node`], its
+/// items (leaf) or children (inner).
+#[derive(Clone, Copy)]
+struct Node32 {
+    b: Box32,
+    start: u32,
+    count: u32,
+}
+
 /// The self-traversal: the tree of a [`Bvh`] with boxes refitted to the
 /// current triangles, walked against itself (node pairs `(a, b)` whose boxes
 /// overlap, each unordered pair once).
 struct SelfPairs<'a> {
     positions: &'a [DVec3],
     triangles: &'a [[u32; 3]],
-    bvh: &'a Bvh,
-    /// Per node: its box.
-    boxes: Vec<Box32>,
+    items: &'a [u32],
+    nodes: Vec<Node32>,
     /// Per item slot (leaf order): its triangle's box.
     item_boxes: Vec<Box32>,
     /// Per triangle: in the subset; per node: holds a subset member.
@@ -560,23 +620,30 @@ impl<'a> SelfPairs<'a> {
                 Box32::outward(lo, hi)
             })
             .collect();
-        let nodes = &bvh.nodes;
-        let mut boxes = vec![Box32::EMPTY; nodes.len()];
+        let mut nodes: Vec<Node32> = bvh
+            .nodes
+            .iter()
+            .map(|n| Node32 {
+                b: Box32::EMPTY,
+                start: n.start,
+                count: n.count,
+            })
+            .collect();
         let mut flags = mark.map(|_| vec![false; nodes.len()]);
         // children come after their parent
         for ni in (0..nodes.len()).rev() {
             let n = nodes[ni];
             let range = n.start as usize..(n.start + n.count) as usize;
             if n.count > 0 {
-                boxes[ni] = item_boxes[range.clone()]
+                nodes[ni].b = item_boxes[range.clone()]
                     .iter()
                     .fold(Box32::EMPTY, |a, b| a.union(*b));
                 if let (Some(f), Some(m)) = (flags.as_mut(), mark) {
                     f[ni] = bvh.items[range].iter().any(|&t| m[t as usize]);
                 }
-            } else {
+            } else if !bvh.items.is_empty() {
                 let c = n.start as usize;
-                boxes[ni] = boxes[c].union(boxes[c + 1]);
+                nodes[ni].b = nodes[c].b.union(nodes[c + 1].b);
                 if let Some(f) = flags.as_mut() {
                     f[ni] = f[c] || f[c + 1];
                 }
@@ -585,8 +652,8 @@ impl<'a> SelfPairs<'a> {
         SelfPairs {
             positions,
             triangles,
-            bvh,
-            boxes,
+            items: &bvh.items,
+            nodes,
             item_boxes,
             mark: mark.zip(flags),
         }
@@ -594,7 +661,7 @@ impl<'a> SelfPairs<'a> {
 
     fn run(&self) -> Vec<(u32, u32)> {
         let mut out = Vec::new();
-        self.within(0, self.bvh.items.len(), &mut out);
+        self.within(0, self.items.len(), &mut out);
         out
     }
 
@@ -603,10 +670,16 @@ impl<'a> SelfPairs<'a> {
         self.mark.as_ref().is_none_or(|(_, f)| f[node])
     }
 
+    /// Whether the pair (`a`, `b`) of nodes is to be walked.
+    #[inline]
+    fn meet(&self, a: usize, b: usize) -> bool {
+        self.nodes[a].b.overlaps(&self.nodes[b].b) && (self.marked(a) || self.marked(b))
+    }
+
     /// Candidate item slots `a`, `b` (boxes overlapping): the exact test.
     #[inline]
     fn pair(&self, a: usize, b: usize, out: &mut Vec<(u32, u32)>) {
-        let (i, j) = (self.bvh.items[a], self.bvh.items[b]);
+        let (i, j) = (self.items[a], self.items[b]);
         if let Some((first, second)) = test_order(self.mark.as_ref().map(|m| m.0), i, j) {
             if exact_pair(self.positions, self.triangles, first, second) {
                 out.push((i.min(j), i.max(j)));
@@ -619,7 +692,7 @@ impl<'a> SelfPairs<'a> {
         if !self.marked(ni) {
             return;
         }
-        let n = self.bvh.nodes[ni];
+        let n = self.nodes[ni];
         if n.count > 0 {
             let (s, e) = (n.start as usize, (n.start + n.count) as usize);
             for a in s..e {
@@ -634,6 +707,7 @@ impl<'a> SelfPairs<'a> {
         }
         let (l, r) = (n.start as usize, n.start as usize + 1);
         let (sl, sr) = (size / 2, size - size / 2);
+        let meet = self.meet(l, r);
         if size >= PARALLEL_PAIRS {
             let ((mut x, y), z) = rayon::join(
                 || {
@@ -652,7 +726,9 @@ impl<'a> SelfPairs<'a> {
                 },
                 || {
                     let mut v = Vec::new();
-                    self.across(l, sl, r, sr, &mut v);
+                    if meet {
+                        self.across(l, sl, r, sr, &mut v);
+                    }
                     v
                 },
             );
@@ -662,20 +738,20 @@ impl<'a> SelfPairs<'a> {
         } else {
             self.within(l, sl, out);
             self.within(r, sr, out);
-            self.across(l, sl, r, sr, out);
+            if meet {
+                self.across(l, sl, r, sr, out);
+            }
         }
     }
 
-    /// Pairs between the disjoint nodes `a` and `b` (over `sa`, `sb` items).
+    /// Pairs between the disjoint nodes `a` and `b` (over `sa`, `sb` items),
+    /// which [`SelfPairs::meet`].
     fn across(&self, a: usize, sa: usize, b: usize, sb: usize, out: &mut Vec<(u32, u32)>) {
-        if !self.boxes[a].overlaps(&self.boxes[b]) || !(self.marked(a) || self.marked(b)) {
-            return;
-        }
-        let (na, nb) = (self.bvh.nodes[a], self.bvh.nodes[b]);
+        let (na, nb) = (self.nodes[a], self.nodes[b]);
         if na.count > 0 && nb.count > 0 {
             for x in na.start as usize..(na.start + na.count) as usize {
                 let bx = self.item_boxes[x];
-                if !bx.overlaps(&self.boxes[b]) {
+                if !bx.overlaps(&nb.b) {
                     continue;
                 }
                 for y in nb.start as usize..(nb.start + nb.count) as usize {
@@ -695,7 +771,8 @@ impl<'a> SelfPairs<'a> {
         };
         let (l, r) = (n.start as usize, n.start as usize + 1);
         let (sl, sr) = (s / 2, s - s / 2);
-        if s >= PARALLEL_PAIRS && so >= PARALLEL_PAIRS {
+        let (ml, mr) = (self.meet(l, other), self.meet(r, other));
+        if ml && mr && s >= PARALLEL_PAIRS && so >= PARALLEL_PAIRS {
             let (mut x, y) = rayon::join(
                 || {
                     let mut v = Vec::new();
@@ -711,8 +788,12 @@ impl<'a> SelfPairs<'a> {
             x.extend(y);
             out.extend(x);
         } else {
-            self.across(l, sl, other, so, out);
-            self.across(r, sr, other, so, out);
+            if ml {
+                self.across(l, sl, other, so, out);
+            }
+            if mr {
+                self.across(r, sr, other, so, out);
+            }
         }
     }
 }
