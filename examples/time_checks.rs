@@ -120,7 +120,6 @@ fn load(path: &str) -> (Vec<DVec3>, Vec<[u32; 3]>) {
 fn main() {
     let mut args = std::env::args().skip(1);
     let path = args.next().expect("volume");
-    let reps: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(3);
     // `time_checks --saved FILE REPS`: only the self-check of a mesh saved
     // with TIME_CHECKS_SAVE=FILE (for profiling)
     if path == "--saved" {
@@ -136,6 +135,7 @@ fn main() {
         );
         return;
     }
+    let reps: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(3);
     let dir = args.next();
     let dir = dir.as_deref();
     let vol = septa::io::read_label_volume(path.as_ref(), &Default::default()).unwrap();

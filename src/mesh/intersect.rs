@@ -466,12 +466,10 @@ fn boxes_overlap(a: (DVec3, DVec3), b: (DVec3, DVec3)) -> bool {
     !(a.0.cmpgt(b.1).any() || a.1.cmplt(b.0).any())
 }
 
-/// The exact test of the candidate pair (`i`, `j`): their boxes overlap and
-/// the triangles intersect. `first` is the triangle passed first to
-/// [`triangles_intersect`].
+/// The exact test of a candidate pair: their boxes overlap and the
+/// triangles intersect (`s` is passed first to [`triangles_intersect`]).
 #[inline]
-fn exact_pair(positions: &[DVec3], triangles: &[[u32; 3]], first: u32, second: u32) -> bool {
-    let (s, t) = (triangles[first as usize], triangles[second as usize]);
+fn exact_pair(positions: &[DVec3], s: [u32; 3], t: [u32; 3]) -> bool {
     // the boxes of triangles sharing a vertex overlap (both hold it)
     (s.iter().any(|v| t.contains(v))
         || boxes_overlap(triangle_box(positions, s), triangle_box(positions, t)))
@@ -515,7 +513,9 @@ fn query_pairs(
     let (lo, hi) = triangle_box(positions, triangles[i as usize]);
     let m = DVec3::splat(margin);
     bvh.query(lo - m, hi + m, |j| {
-        if (!mark[j as usize] || j > i) && exact_pair(positions, triangles, i, j) {
+        if (!mark[j as usize] || j > i)
+            && exact_pair(positions, triangles[i as usize], triangles[j as usize])
+        {
             hits.push((i.min(j), i.max(j)));
         }
     });
@@ -595,8 +595,12 @@ struct Node32 {
 /// current triangles, walked against itself (node pairs `(a, b)` whose boxes
 /// overlap, each unordered pair once).
 struct SelfPairs<'a> {
-    positions: &'a [DVec3],
-    triangles: &'a [[u32; 3]],
+    /// The vertices in order of first use by the item slots, and the
+    /// triangles per slot over them: the exact tests, walking the tree, then
+    /// read memory mostly in order (the answers do not change: the ids are
+    /// only compared for equality and the positions are the same).
+    positions: Vec<DVec3>,
+    triangles: Vec<[u32; 3]>,
     items: &'a [u32],
     nodes: Vec<Node32>,
     /// Per item slot (leaf order): its triangle's box.
@@ -612,11 +616,27 @@ impl<'a> SelfPairs<'a> {
         bvh: &'a Bvh,
         mark: Option<&'a [bool]>,
     ) -> Self {
-        let item_boxes: Vec<Box32> = bvh
+        let mut local = vec![u32::MAX; positions.len()];
+        let mut local_positions = Vec::with_capacity(positions.len());
+        let local_triangles: Vec<[u32; 3]> = bvh
             .items
+            .iter()
+            .map(|&t| {
+                triangles[t as usize].map(|v| {
+                    let l = &mut local[v as usize];
+                    if *l == u32::MAX {
+                        *l = local_positions.len() as u32;
+                        local_positions.push(positions[v as usize]);
+                    }
+                    *l
+                })
+            })
+            .collect();
+        drop(local);
+        let item_boxes: Vec<Box32> = local_triangles
             .par_iter()
             .map(|&t| {
-                let (lo, hi) = triangle_box(positions, triangles[t as usize]);
+                let (lo, hi) = triangle_box(&local_positions, t);
                 Box32::outward(lo, hi)
             })
             .collect();
@@ -650,8 +670,8 @@ impl<'a> SelfPairs<'a> {
             }
         }
         SelfPairs {
-            positions,
-            triangles,
+            positions: local_positions,
+            triangles: local_triangles,
             items: &bvh.items,
             nodes,
             item_boxes,
@@ -671,7 +691,7 @@ impl<'a> SelfPairs<'a> {
     }
 
     /// Whether the pair (`a`, `b`) of nodes is to be walked.
-    #[inline]
+    #[inline(always)]
     fn meet(&self, a: usize, b: usize) -> bool {
         self.nodes[a].b.overlaps(&self.nodes[b].b) && (self.marked(a) || self.marked(b))
     }
@@ -680,8 +700,10 @@ impl<'a> SelfPairs<'a> {
     #[inline]
     fn pair(&self, a: usize, b: usize, out: &mut Vec<(u32, u32)>) {
         let (i, j) = (self.items[a], self.items[b]);
-        if let Some((first, second)) = test_order(self.mark.as_ref().map(|m| m.0), i, j) {
-            if exact_pair(self.positions, self.triangles, first, second) {
+        if let Some((first, _)) = test_order(self.mark.as_ref().map(|m| m.0), i, j) {
+            let (s, t) = (self.triangles[a], self.triangles[b]);
+            let (s, t) = if first == i { (s, t) } else { (t, s) };
+            if exact_pair(&self.positions, s, t) {
                 out.push((i.min(j), i.max(j)));
             }
         }
@@ -830,8 +852,10 @@ pub fn triangles_intersect(p: &[DVec3], s: [u32; 3], t: [u32; 3]) -> bool {
         }
     }
     let shared = &shared[..n_shared];
-    let sp = s.map(|v| p[v as usize]);
-    let tp = t.map(|v| p[v as usize]);
+    // (built element by element: `map` copies through the stack in a way
+    // that stalls store forwarding)
+    let sp = [p[s[0] as usize], p[s[1] as usize], p[s[2] as usize]];
+    let tp = [p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]];
     if n_shared < 2 && (separated_by_plane(&sp, &tp) || separated_by_plane(&tp, &sp)) {
         return false;
     }
@@ -856,9 +880,7 @@ pub fn triangles_intersect(p: &[DVec3], s: [u32; 3], t: [u32; 3]) -> bool {
                 .expect("one free vertex");
             let (a, b) = (sp[shared[0].0], sp[shared[1].0]);
             let n = (b - a).cross(sp[free_s] - a);
-            let scale = (b - a).length_squared().max(1e-300);
-            let off = n.dot(tp[free_t] - a) / (n.length() * scale.sqrt()).max(1e-300);
-            if off.abs() > 1e-9 {
+            if off_plane(n, b - a, tp[free_t] - a) {
                 return false;
             }
             // same side of the shared edge within the plane
@@ -870,6 +892,35 @@ pub fn triangles_intersect(p: &[DVec3], s: [u32; 3], t: [u32; 3]) -> bool {
     }
 }
 
+/// Whether `w` is off the plane of normal `n` (= `e × f` for the shared edge
+/// `e`): `|n·w| / (|n| |e|) > 1e-9` (denominator at least `1e-300`). Compared
+/// squared first; the quotient is computed only when the two are within
+/// rounding of each other (the answer is the same).
+#[inline]
+fn off_plane(n: DVec3, e: DVec3, w: DVec3) -> bool {
+    let num = n.dot(w);
+    let scale = e.length_squared().max(1e-300);
+    let n2 = n.length_squared();
+    const SAFE: std::ops::RangeInclusive<f64> = 1e-250..=1e250;
+    if SAFE.contains(&n2) && SAFE.contains(&scale) && SAFE.contains(&(n2 * scale)) {
+        let (num2, lim) = (num * num, 1e-18 * (n2 * scale));
+        if num2 > lim * (1.0 + 1e-9) {
+            return true;
+        }
+        if num2 < lim * (1.0 - 1e-9) {
+            return false;
+        }
+    }
+    off_plane_reference(n, e, w)
+}
+
+/// [`off_plane`] as it was written first.
+fn off_plane_reference(n: DVec3, e: DVec3, w: DVec3) -> bool {
+    let scale = e.length_squared().max(1e-300);
+    let off = n.dot(w) / (n.length() * scale.sqrt()).max(1e-300);
+    off.abs() > 1e-9
+}
+
 /// Whether all of `t` lies strictly on one side of the plane of `s` (then they
 /// cannot intersect; shared vertices lie on the plane and do not count).
 ///
@@ -879,8 +930,8 @@ pub fn triangles_intersect(p: &[DVec3], s: [u32; 3], t: [u32; 3]) -> bool {
 /// within rounding of each other is `eps` computed (the answer is the same).
 fn separated_by_plane(s: &[DVec3; 3], t: &[DVec3; 3]) -> bool {
     let n = (s[1] - s[0]).cross(s[2] - s[0]);
-    let r = t.map(|q| q - s[0]);
-    let d = r.map(|q| n.dot(q));
+    let r = [t[0] - s[0], t[1] - s[0], t[2] - s[0]];
+    let d = [n.dot(r[0]), n.dot(r[1]), n.dot(r[2])];
     let n2 = n.length_squared();
     let l2 = r[0]
         .length_squared()
@@ -1360,6 +1411,29 @@ mod tests {
             );
         }
         assert!(total > 1000, "the cases have crossings ({total})");
+    }
+
+    #[test]
+    fn off_plane_matches_its_reference() {
+        let mut r = Rng(78);
+        let mut seen = [0usize; 2];
+        for k in 0..200_000 {
+            let scale = [1e-3, 1.0, 300.0, 1e-160][k % 4];
+            let mut v =
+                |r: &mut Rng| DVec3::new(r.next() - 0.5, r.next() - 0.5, r.next() - 0.5) * scale;
+            let (e, f, mut w) = (v(&mut r), v(&mut r), v(&mut r));
+            let n = e.cross(f);
+            if r.below(2) == 0 {
+                // near the threshold
+                let target = 1e-9 * n.length() * e.length();
+                let x = [0.999_999_999, 1.0, 1.000_000_001, 1.0 + 1e-15, 0.5][r.below(5)];
+                w += n * ((x * target - n.dot(w)) / n.length_squared());
+            }
+            let want = off_plane_reference(n, e, w);
+            seen[want as usize] += 1;
+            assert_eq!(off_plane(n, e, w), want, "{n:?} {e:?} {w:?}");
+        }
+        assert!(seen[0] > 1000 && seen[1] > 1000, "{seen:?}");
     }
 
     #[test]
