@@ -950,7 +950,7 @@ fn separated_by_plane(s: &[DVec3; 3], t: &[DVec3; 3]) -> bool {
             let d2 = d[k] * d[k];
             if d2 > above {
                 side[k] = if d[k] > 0.0 { 1 } else { -1 };
-            } else if !(d2 < below) {
+            } else if d2 >= below || d2.is_nan() {
                 decided = false;
                 break;
             }
@@ -1284,7 +1284,7 @@ mod tests {
             .map(|_| {
                 let a = r.below(m);
                 // near neighbours in the pool share vertices often
-                let mut near = |r: &mut Rng| ((a + 1 + r.below(12)) % m) as u32;
+                let near = |r: &mut Rng| ((a + 1 + r.below(12)) % m) as u32;
                 [a as u32, near(&mut r), near(&mut r)]
             })
             // (a triangle repeating a vertex id is not tested: see the report)
@@ -1419,7 +1419,7 @@ mod tests {
         let mut seen = [0usize; 2];
         for k in 0..200_000 {
             let scale = [1e-3, 1.0, 300.0, 1e-160][k % 4];
-            let mut v =
+            let v =
                 |r: &mut Rng| DVec3::new(r.next() - 0.5, r.next() - 0.5, r.next() - 0.5) * scale;
             let (e, f, mut w) = (v(&mut r), v(&mut r), v(&mut r));
             let n = e.cross(f);
@@ -1442,7 +1442,7 @@ mod tests {
         let mut seen = [0usize; 2];
         for k in 0..200_000 {
             let scale = [1e-3, 1.0, 300.0][k % 3];
-            let mut pt = |r: &mut Rng| DVec3::new(r.next(), r.next(), r.next()) * scale;
+            let pt = |r: &mut Rng| DVec3::new(r.next(), r.next(), r.next()) * scale;
             let s = [pt(&mut r), pt(&mut r), pt(&mut r)];
             let n = (s[1] - s[0]).cross(s[2] - s[0]);
             let mut t = [pt(&mut r), pt(&mut r), pt(&mut r)];
