@@ -723,7 +723,16 @@ fn distance_stats(
     } else {
         1.0
     };
-    let bvh = NearestBvh::new(&reference.positions, &reference.triangles);
+    // exact nearest triangles from a cell grid (cheaper to build and, from a
+    // hint near the answer, to query than a tree over 1-2 M triangles)
+    let bvh = NearestGrid(crate::remesh::project::SurfaceRef::new(
+        reference
+            .triangles
+            .par_iter()
+            .filter(|t| t.iter().all(|&v| (v as usize) < reference.positions.len()))
+            .map(|t| t.map(|v| reference.positions[v as usize]))
+            .collect(),
+    ));
     let p = &mesh.positions;
     let nv = p.len();
     if bvh.is_empty() {
@@ -908,6 +917,27 @@ fn closest_on_segment(p: DVec3, a: DVec3, b: DVec3) -> DVec3 {
         return a;
     }
     a + d * ((p - a).dot(d) / l2).clamp(0.0, 1.0)
+}
+
+/// The quality report's nearest-triangle queries.
+struct NearestGrid(crate::remesh::project::SurfaceRef);
+
+impl NearestGrid {
+    fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    fn nearest(&self, p: DVec3, hint: u32) -> Option<Nearest> {
+        if self.is_empty() {
+            return None;
+        }
+        let (point, triangle) = self.0.project_from(p, hint);
+        Some(Nearest {
+            triangle,
+            point,
+            distance_squared: (point - p).length_squared(),
+        })
+    }
 }
 
 /// Result of [`NearestBvh::nearest`].

@@ -301,6 +301,11 @@ impl SurfaceRef {
         found
     }
 
+    /// Whether the reference has no triangles.
+    pub fn is_empty(&self) -> bool {
+        self.tris.is_empty()
+    }
+
     /// Nearest point of the reference surface (or `p` itself if it is empty).
     pub fn project(&self, p: DVec3) -> DVec3 {
         self.project_from(p, NO_TRIANGLE).0
@@ -359,7 +364,13 @@ impl SurfaceRef {
                 }
             }
         };
-        // a good guess bounds the search to a small box
+        // the cell of p first: it usually holds the answer, which bounds the
+        // rest of the search to a small box
+        let centre = g.coords(p);
+        visit(
+            (centre[2] * g.dims[1] + centre[1]) * g.dims[0] + centre[0],
+            &mut best,
+        );
         if best.1.is_finite() {
             let r = DVec3::splat(best.1.sqrt());
             if g.cells_in(p - r, p + r) <= 27 {
@@ -368,7 +379,6 @@ impl SurfaceRef {
             }
         }
         // growing cubes of cells around the cell of p (p may lie outside the grid)
-        let centre = g.coords(p);
         let max_r = g.dims.iter().copied().max().unwrap_or(1);
         for r in 0..=max_r {
             let (a, b) = (
