@@ -353,12 +353,13 @@ impl SurfaceRef {
         }
         let g = &self.grid;
         let mut best = guess.unwrap_or((NO_TRIANGLE, f64::INFINITY));
+        // (the first triangle seen is taken even if its distance overflows)
         let visit = |c: usize, best: &mut (u32, f64)| {
             for &i in g.cell_items(c) {
                 let t = &self.tris[i as usize];
-                if box_dist2(t, p) < best.1 {
+                if best.0 == NO_TRIANGLE || box_dist2(t, p) < best.1 {
                     let d = self.dist2(i, p);
-                    if d < best.1 {
+                    if best.0 == NO_TRIANGLE || d < best.1 {
                         *best = (i, d);
                     }
                 }
