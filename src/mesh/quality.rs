@@ -39,6 +39,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::InterfaceMesh;
+use super::intersect::{f32_down, f32_up};
 use crate::volume::LabelId;
 
 /// Options of [`quality`].
@@ -975,24 +976,6 @@ pub struct NearestBvh<'a> {
     nodes: Vec<Node>,
     /// Triangle ids in leaf order.
     order: Vec<u32>,
-}
-
-fn f32_down(x: f64) -> f32 {
-    let f = x as f32;
-    if f.is_nan() {
-        return f32::MIN;
-    }
-    if (f as f64) <= x {
-        f
-    } else if f == f32::INFINITY {
-        f32::MAX
-    } else {
-        f - (f.abs() * f32::EPSILON).max(f32::MIN_POSITIVE)
-    }
-}
-
-fn f32_up(x: f64) -> f32 {
-    -f32_down(-x)
 }
 
 impl<'a> NearestBvh<'a> {
