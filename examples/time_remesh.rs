@@ -26,11 +26,12 @@ fn main() {
     };
     let out = remesh(&mesh, &params).unwrap();
     println!(
-        "{} -> {} triangles in {:.3} s, {} crossings left; {:?}",
+        "{} -> {} triangles in {:.3} s, {} crossings left, {} vertices kept; {:?}",
         mesh.triangle_count(),
         out.mesh.triangle_count(),
         t.elapsed().as_secs_f64(),
         out.intersections_left,
+        out.kept,
         out.timings
     );
 }

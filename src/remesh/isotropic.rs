@@ -172,7 +172,7 @@ impl Remesher {
         Ok(r)
     }
 
-    fn rebuild_copies(&mut self) {
+    pub(super) fn rebuild_copies(&mut self) {
         self.copies.clear();
         for (p, st) in self.patches.iter().enumerate() {
             for v in st.mesh.vertices() {
@@ -522,8 +522,11 @@ fn build_patch(
     })?;
     for v in 0..m.vertex_slots() {
         // islands are locked like junction vertices: nothing moves them
-        m.locked[v] =
-            net.on_junction(m.tag[v]) || net.kind[m.tag[v] as usize] == VertexKind::Island;
+        m.locked[v] = net.on_junction(m.tag[v])
+            || matches!(
+                net.kind[m.tag[v] as usize],
+                VertexKind::Island | VertexKind::Kept
+            );
     }
     // Faces are numbered like the reference triangles (the mesh is what the
     // reference was made of): the neighbours across edges come from the

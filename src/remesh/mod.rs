@@ -6,7 +6,11 @@
 //! a box of `max_displacement` voxels around each start position) gives the
 //! smoothed *reference*; the isotropic remesher then splits, collapses, flips
 //! and relaxes edges (curves first, then patches in parallel) and projects
-//! vertices back onto the reference.
+//! vertices back onto the reference; a repair pass removes crossings
+//! with local operations, and where it cannot, the patches are remeshed
+//! again with the smoothed (crossing-free) surface kept around the
+//! crossings, in growing regions up to all of it: the result never
+//! self-intersects.
 //!
 //! ```
 //! use septa::config::Resolved;
@@ -31,6 +35,8 @@ mod repair;
 pub mod smooth;
 
 pub use isotropic::triangle_quality;
+
+use glam::DVec3;
 
 use crate::error::{Error, Result};
 use crate::mesh::InterfaceMesh;
@@ -89,8 +95,12 @@ pub struct Remeshed {
     pub mesh: InterfaceMesh,
     /// The smoothed extraction (the surface the remeshed vertices lie on).
     pub smoothed: InterfaceMesh,
-    /// Pairs of intersecting triangles the repair pass could not remove.
+    /// Pairs of intersecting triangles left (zero unless the smoothed
+    /// extraction itself intersects, i.e. the input mesh did).
     pub intersections_left: usize,
+    /// Vertices kept at their smoothed positions (not remeshed) around
+    /// crossings the repair pass could not remove.
+    pub kept: usize,
     /// Wall time of each step.
     pub timings: RemeshTimings,
 }
@@ -112,6 +122,10 @@ pub struct RemeshTimings {
 
 /// Rounds of the self-intersection repair pass.
 const REPAIR_ROUNDS: usize = 20;
+
+/// Remeshing attempts keeping growing regions (1, 2, 4, 8 target edges
+/// around the crossings left) before the last, which keeps every vertex.
+const KEEP_ATTEMPTS: usize = 5;
 
 /// How far (in voxels) a remeshed triangle's centroid may lie from the
 /// smoothed reference: keeps chords from cutting across thin structures.
@@ -144,18 +158,52 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
         .iter()
         .cloned()
         .fold(f64::INFINITY, f64::min);
-    let mut r = isotropic::Remesher::new(
-        mesh,
-        &net,
-        &smoothed_pos,
-        params.target_edge,
-        FIT_VOXELS * voxel,
-    )?;
-    timings.setup = clock.elapsed().as_secs_f64() - timings.smooth;
-    (timings.curves, timings.patches) = r.run(params.iterations);
-    let before_repair = clock.elapsed().as_secs_f64();
-    let intersections_left = r.repair_intersections(REPAIR_ROUNDS);
-    timings.repair = clock.elapsed().as_secs_f64() - before_repair;
+    // Where the repair cannot remove a crossing, remesh again keeping the
+    // smoothed surface (crossing-free) around it, in growing regions; the
+    // last attempt keeps everything, so the result never self-intersects.
+    let mut regions: Vec<(DVec3, DVec3)> = Vec::new();
+    let mut kept = 0;
+    let mut attempt = 0;
+    let (r, intersections_left) = loop {
+        let mut net = net.clone();
+        if attempt == KEEP_ATTEMPTS {
+            let all = (DVec3::splat(f64::NEG_INFINITY), DVec3::splat(f64::INFINITY));
+            kept = net.keep_within(&smoothed_pos, &[all]);
+        } else if attempt > 0 {
+            let r = params.target_edge * ((1u32 << (attempt - 1)) as f64 - 1.0) * 0.5;
+            let grown: Vec<_> = regions
+                .iter()
+                .map(|&(lo, hi)| (lo - DVec3::splat(r), hi + DVec3::splat(r)))
+                .collect();
+            kept = net.keep_within(&smoothed_pos, &grown);
+        }
+        let clock = std::time::Instant::now();
+        let mut r = isotropic::Remesher::new(
+            mesh,
+            &net,
+            &smoothed_pos,
+            params.target_edge,
+            FIT_VOXELS * voxel,
+        )?;
+        timings.setup += clock.elapsed().as_secs_f64();
+        // (with every vertex kept the output is the smoothed extraction as is)
+        let iterations = if attempt == KEEP_ATTEMPTS {
+            0
+        } else {
+            params.iterations
+        };
+        let (curves, patches) = r.run(iterations);
+        timings.curves += curves;
+        timings.patches += patches;
+        let clock = std::time::Instant::now();
+        let left = r.repair_intersections(REPAIR_ROUNDS);
+        timings.repair += clock.elapsed().as_secs_f64();
+        if left == 0 || attempt == KEEP_ATTEMPTS {
+            break (r, left);
+        }
+        regions.extend(r.crossing_boxes());
+        attempt += 1;
+    };
     let out = r.into_mesh(mesh);
     let smoothed = InterfaceMesh {
         positions: smoothed_pos,
@@ -165,6 +213,7 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
         mesh: out,
         smoothed,
         intersections_left,
+        kept,
         timings,
     })
 }

@@ -2,6 +2,10 @@
 //! (where junction curves meet; they never move), which lie on a junction
 //! curve (they move only along it), and which are interior to one patch.
 
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::mesh::intersect::Bvh;
 use crate::mesh::{Dsu, InterfaceMesh};
 
 /// Role of a vertex during smoothing and remeshing.
@@ -16,6 +20,9 @@ pub enum VertexKind {
     /// On a small island (a closed surface component without junctions,
     /// e.g. a few voxels of one label inside another): kept as extracted.
     Island,
+    /// Kept at its smoothed position: in a region where remeshing left two
+    /// sheets crossing (see [`Network::keep_within`]).
+    Kept,
 }
 
 /// A junction curve: ordered global vertex ids.
@@ -63,6 +70,38 @@ impl Network {
             self.kind[v as usize],
             VertexKind::Curve(_) | VertexKind::Corner
         )
+    }
+
+    /// Keeps the vertices whose `positions` lie in one of the boxes
+    /// `regions` where they are: interior vertices become
+    /// [`VertexKind::Kept`], curve vertices [`VertexKind::Corner`] (fixed).
+    /// Returns the number of vertices newly kept.
+    pub fn keep_within(&mut self, positions: &[DVec3], regions: &[(DVec3, DVec3)]) -> usize {
+        if regions.is_empty() {
+            return 0;
+        }
+        let bvh = Bvh::new(regions);
+        let inside: Vec<bool> = positions
+            .par_iter()
+            .map(|&p| {
+                // (the tree reports every item of a leaf it reaches: test each box)
+                bvh.any(p, p, |i| {
+                    let (lo, hi) = regions[i as usize];
+                    p.cmpge(lo).all() && p.cmple(hi).all()
+                })
+            })
+            .collect();
+        let mut kept = 0;
+        for (k, inside) in self.kind.iter_mut().zip(inside) {
+            let new = match *k {
+                VertexKind::Interior if inside => VertexKind::Kept,
+                VertexKind::Curve(_) if inside => VertexKind::Corner,
+                other => other,
+            };
+            kept += usize::from(new != *k);
+            *k = new;
+        }
+        kept
     }
 
     /// Marks the vertices of small islands as [`VertexKind::Island`]:

@@ -84,6 +84,21 @@ impl Remesher {
         self_intersections(&snap.positions, &snap.triangles).len()
     }
 
+    /// Bounding boxes of the triangles that intersect another one.
+    pub(crate) fn crossing_boxes(&self) -> Vec<(DVec3, DVec3)> {
+        let snap = self.snapshot();
+        let pairs = self_intersections(&snap.positions, &snap.triangles);
+        let mut tris: Vec<u32> = pairs.iter().flat_map(|&(a, b)| [a, b]).collect();
+        tris.sort_unstable();
+        tris.dedup();
+        tris.iter()
+            .map(|&t| {
+                let [a, b, c] = snap.triangles[t as usize].map(|v| snap.positions[v as usize]);
+                (a.min(b).min(c), a.max(b).max(c))
+            })
+            .collect()
+    }
+
     /// Tries the operations on snapshot triangle `t`; applies the first that
     /// leaves its triangles free of intersections.
     fn fix_triangle(
@@ -104,7 +119,9 @@ impl Remesher {
             eps: self.eps,
         };
         let hi = 4.0 / 3.0 * self.target;
-        'cands: for c in candidates(m, p, f, fit, hi) {
+        let cands = candidates(m, p, f, fit, hi);
+
+        'cands: for c in cands {
             let mut replaced_all = Vec::new();
             for part in &c.parts {
                 let faces = &snap.face_index[part.patch as usize];

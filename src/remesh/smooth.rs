@@ -197,7 +197,8 @@ pub fn smooth(
     pos
 }
 
-/// Rounds of [`untangle`] before the last, which restores start positions.
+/// Rounds of [`untangle`] that halve displacements before those that
+/// restore start positions.
 const UNTANGLE_ROUNDS: usize = 6;
 
 /// Pulls the vertices of self-intersecting triangles back toward their start
@@ -225,7 +226,11 @@ pub(crate) fn untangle(tris: &[[u32; 3]], start: &[DVec3], pos: &mut [DVec3]) ->
         .collect();
     bvh.refit(&boxes);
     let mut moved = vec![false; pos.len()];
-    for round in 0..=UNTANGLE_ROUNDS {
+    // after the halving rounds, restore start positions until no pair is left:
+    // a pair of triangles all at their start positions is a pair of the
+    // extraction, which does not intersect, so every round restores a vertex
+    // more and the loop ends
+    for round in 0.. {
         if pairs.is_empty() {
             break;
         }
@@ -235,12 +240,18 @@ pub(crate) fn untangle(tris: &[[u32; 3]], start: &[DVec3], pos: &mut [DVec3]) ->
             .collect();
         verts.sort_unstable();
         verts.dedup();
-        let keep = if round == UNTANGLE_ROUNDS { 0.0 } else { 0.5 };
+        let keep = if round >= UNTANGLE_ROUNDS { 0.0 } else { 0.5 };
         moved.fill(false);
+        let mut changed = false;
         for &v in &verts {
             let v = v as usize;
+            changed |= pos[v] != start[v];
             pos[v] = start[v] + (pos[v] - start[v]) * keep;
             moved[v] = true;
+        }
+        if !changed {
+            // only start positions are involved: the input itself intersects
+            break;
         }
         held += verts.len();
         // only triangles at moved vertices can have changed
