@@ -6,7 +6,7 @@
 //!   is ignored) and palette images (the palette index is the value: useful
 //!   for label images); not interlaced. Color (RGB) images are refused with a
 //!   message (convert them to grayscale first). Chunk checksums are verified.
-//! - **Slices** of any volume septa reads: [`slice`] along x, y or z.
+//! - **Slices** of any volume septa reads: [`slice()`] along x, y or z.
 //!
 //! Pixel `(i, j)` is sample `i + width · j`: for image files `j` counts rows
 //! from the top of the file. For a slice the two axes are the volume's other
