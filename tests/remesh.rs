@@ -223,12 +223,7 @@ fn islands_stay_outward() {
             values[(l * n + j) * n + i + d] = 2;
         }
     }
-    let vol = LabelVolume::from_values(
-        septa::volume::Dims::new(n, n, n).unwrap(),
-        &values,
-        septa::volume::Geometry::identity(),
-    )
-    .unwrap();
+    let vol = common::volume([n, n, n], &values);
     let r = Resolved::defaults(&vol);
     let mesh = extraction(&vol, &r);
     for target_edge in [1.5, 2.0, 4.0] {
@@ -265,12 +260,7 @@ fn lenses_on_an_interface_do_not_cross() {
             let z = n / 2 - 1 - (k + shift) % 2;
             values[(z * n + j) * n + i] = 7;
         }
-        let vol = LabelVolume::from_values(
-            septa::volume::Dims::new(n, n, n).unwrap(),
-            &values,
-            septa::volume::Geometry::identity(),
-        )
-        .unwrap();
+        let vol = common::volume([n, n, n], &values);
         let mesh = extraction(&vol, &Resolved::defaults(&vol));
         let out = remeshed(&mesh, target_edge);
         let name = format!("lenses, shift {shift}, L = {target_edge}");
@@ -310,12 +300,7 @@ fn random_volumes_remesh_without_crossings() {
                 }
             })
             .collect();
-        let vol = LabelVolume::from_values(
-            septa::volume::Dims::new(n, n, n).unwrap(),
-            &values,
-            septa::volume::Geometry::identity(),
-        )
-        .unwrap();
+        let vol = common::volume([n, n, n], &values);
         let mesh = extraction(&vol, &Resolved::defaults(&vol));
         for target_edge in [1.5, 3.0] {
             let out = remeshed(&mesh, target_edge);
