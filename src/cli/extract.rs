@@ -171,7 +171,12 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
                 },
             );
             timings.push(("remesh", stage.done()));
-            (out.mesh, Some((params, q, out.timings, out.kept)))
+            let fallback = Fallback {
+                attempts: out.attempts,
+                kept: out.kept,
+                extraction_vertices: mesh.vertex_count(),
+            };
+            (out.mesh, Some((params, q, out.timings, fallback)))
         }
         None => (mesh, None),
     };
@@ -247,7 +252,8 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
         "extraction": {"triangles": extraction_size.0, "vertices": extraction_size.1},
         "quality": remeshed.as_ref().map(|r| &r.1),
         "remesh_steps_s": remeshed.as_ref().map(|r| r.2),
-        "remesh_kept_vertices": remeshed.as_ref().map(|r| r.3),
+        "remesh_attempts": remeshed.as_ref().map(|r| r.3.attempts),
+        "remesh_kept_vertices": remeshed.as_ref().map(|r| r.3.kept),
         "validation": {"passed": report.passed(), "checks": report.checks},
         "timings_s": timings.iter().map(|(k, d)| ((*k).to_string(), serde_json::json!(d.as_secs_f64()))).collect::<serde_json::Map<_, _>>(),
     });
@@ -271,15 +277,10 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
         files.len(),
         extraction_size,
     );
-    if let Some((_, q, _, kept)) = &remeshed {
+    if let Some((_, q, _, fallback)) = &remeshed {
         ui.say("remeshing quality (distance and volume change against the unsmoothed extraction):");
         ui.say(q.summary().trim_end());
-        if *kept > 0 {
-            ui.say(format!(
-                "kept       {kept} vertices at their smoothed positions (not remeshed) where remeshed \
-                 sheets would have crossed"
-            ));
-        }
+        fallback.report(ui);
     }
     if report.passed() {
         Ok(ExitCode::SUCCESS)
@@ -292,6 +293,41 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
 }
 
 #[allow(clippy::too_many_arguments)]
+/// What the remesher did where crossings were left (see `septa::remesh::remesh`).
+struct Fallback {
+    attempts: usize,
+    kept: usize,
+    extraction_vertices: usize,
+}
+
+impl Fallback {
+    fn report(&self, ui: &Ui) {
+        if self.attempts > 1 {
+            ui.say(format!(
+                "crossings  remeshed {} times: shorter edges around places where remeshed sheets \
+                 would have crossed{}",
+                self.attempts,
+                if self.kept > 0 {
+                    format!(
+                        ", {} vertices kept at their smoothed positions (not remeshed)",
+                        self.kept
+                    )
+                } else {
+                    String::new()
+                }
+            ));
+        }
+        // most of the surface kept: the target is longer than the structures are thin
+        if self.kept * 10 > self.extraction_vertices {
+            ui.warn(format!(
+                "{:.0} % of the surface kept at the extraction's resolution: the target edge is too \
+                 long for the thinnest structures here (a smaller --target-edge remeshes them)",
+                100.0 * self.kept as f64 / self.extraction_vertices.max(1) as f64
+            ));
+        }
+    }
+}
+
 fn summarize(
     ui: &Ui,
     args: &ExtractArgs,

@@ -24,6 +24,7 @@ use rayon::prelude::*;
 use super::halfedge::{HalfedgeMesh, NONE};
 use super::network::{Network, VertexKind};
 use super::project::{CurveRef, NO_TRIANGLE, SurfaceRef};
+use super::sizing::Sizing;
 use crate::error::{Error, Result};
 use crate::extract::is_degenerate;
 use crate::mesh::{InterfaceMesh, JunctionCurve};
@@ -122,7 +123,7 @@ pub(crate) struct Remesher {
     pub(super) patches: Vec<PatchState>,
     /// Local copies of each junction vertex: (patch, local vertex).
     pub(super) copies: HashMap<u32, Vec<(u32, u32)>>,
-    pub(super) target: f64,
+    pub(super) sizing: Sizing,
     /// Largest distance of a new triangle's centroid from the reference (mm).
     pub(super) eps: f64,
 }
@@ -133,7 +134,7 @@ impl Remesher {
         mesh: &InterfaceMesh,
         net: &Network,
         smoothed: &[DVec3],
-        target: f64,
+        sizing: Sizing,
         eps: f64,
     ) -> Result<Self> {
         let groups = mesh.patch_triangles();
@@ -165,7 +166,7 @@ impl Remesher {
             curve_ref,
             patches,
             copies: HashMap::new(),
-            target,
+            sizing,
             eps,
         };
         r.rebuild_copies();
@@ -197,10 +198,10 @@ impl Remesher {
             }
             curves += clock.elapsed().as_secs_f64();
             let clock = std::time::Instant::now();
-            let (target, eps) = (self.target, self.eps);
+            let (sizing, eps) = (&self.sizing, self.eps);
             self.patches
                 .par_iter_mut()
-                .for_each(|st| remesh_patch(st, target, eps));
+                .for_each(|st| remesh_patch(st, sizing, eps));
             self.rebuild_copies();
             patches += clock.elapsed().as_secs_f64();
         }
@@ -223,12 +224,12 @@ impl Remesher {
     }
 
     fn remesh_curve(&mut self, c: usize) {
-        let (hi, lo) = (4.0 / 3.0 * self.target, 4.0 / 5.0 * self.target);
         // splits
         let mut i = 0;
         while i < self.curve_edges(c) {
             let (u, v) = self.curve_edge_at(c, i);
-            if (self.pos[u as usize] - self.pos[v as usize]).length() > hi {
+            let (pu, pv) = (self.pos[u as usize], self.pos[v as usize]);
+            if (pu - pv).length() > 4.0 / 3.0 * self.sizing.edge(pu, pv) {
                 self.split_curve_edge(c, i);
                 i += 2;
             } else {
@@ -239,8 +240,9 @@ impl Remesher {
         let mut i = 0;
         while i < self.curve_edges(c) {
             let (u, v) = self.curve_edge_at(c, i);
-            let len = (self.pos[u as usize] - self.pos[v as usize]).length();
-            if len < lo && self.try_curve_collapse(c, i, u, v) {
+            let (pu, pv) = (self.pos[u as usize], self.pos[v as usize]);
+            let len = (pu - pv).length();
+            if len < 4.0 / 5.0 * self.sizing.edge(pu, pv) && self.try_curve_collapse(c, i, u, v) {
                 continue;
             }
             i += 1;
@@ -335,7 +337,8 @@ impl Remesher {
         } else {
             self.curves[c][(i + 2) % n]
         };
-        if (self.pos[other as usize] - self.pos[keep as usize]).length() > 4.0 / 3.0 * self.target {
+        let (po, pk) = (self.pos[other as usize], self.pos[keep as usize]);
+        if (po - pk).length() > 4.0 / 3.0 * self.sizing.edge(po, pk) {
             return false;
         }
         let sites = self.curve_edge(remove, keep);
@@ -665,34 +668,40 @@ pub(super) fn collapse_geometry_ok(
 }
 
 /// One B&K iteration on the interior of a patch (curves frozen).
-fn remesh_patch(st: &mut PatchState, target: f64, eps: f64) {
+fn remesh_patch(st: &mut PatchState, sizing: &Sizing, eps: f64) {
     let fit = Fit {
         reference: &st.reference,
         eps,
     };
-    split_long_edges(&mut st.mesh, target);
-    collapse_short_edges(&mut st.mesh, target, fit);
+    split_long_edges(&mut st.mesh, sizing);
+    collapse_short_edges(&mut st.mesh, sizing, fit);
     st.mesh.collect_garbage();
     equalize_valences(&mut st.mesh, fit);
     relax_and_project(&mut st.mesh, fit);
 }
 
-fn split_long_edges(m: &mut HalfedgeMesh, target: f64) {
-    let hi = 4.0 / 3.0 * target;
+fn split_long_edges(m: &mut HalfedgeMesh, sizing: &Sizing) {
     let edges: Vec<u32> = m.edges().collect();
     for h in edges {
-        if !m.is_boundary_edge(h) && m.edge_length(h) > hi {
-            let p = (m.pos[m.from(h) as usize] + m.pos[m.to(h) as usize]) * 0.5;
+        if m.is_boundary_edge(h) {
+            continue;
+        }
+        let p = (m.pos[m.from(h) as usize] + m.pos[m.to(h) as usize]) * 0.5;
+        if m.edge_length(h) > 4.0 / 3.0 * sizing.at(p) {
             m.split(h, p);
         }
     }
 }
 
-fn collapse_short_edges(m: &mut HalfedgeMesh, target: f64, fit: Fit) {
-    let (lo, hi) = (4.0 / 5.0 * target, 4.0 / 3.0 * target);
+fn collapse_short_edges(m: &mut HalfedgeMesh, sizing: &Sizing, fit: Fit) {
     let edges: Vec<u32> = m.edges().collect();
     'edges: for e in edges {
-        if m.edge_dead(e) || m.edge_length(e) >= lo {
+        if m.edge_dead(e) {
+            continue;
+        }
+        let target = sizing.edge(m.pos[m.from(e) as usize], m.pos[m.to(e) as usize]);
+        let (lo, hi) = (4.0 / 5.0 * target, 4.0 / 3.0 * target);
+        if m.edge_length(e) >= lo {
             continue;
         }
         for h in [e, e ^ 1] {

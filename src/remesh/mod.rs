@@ -8,9 +8,9 @@
 //! and relaxes edges (curves first, then patches in parallel) and projects
 //! vertices back onto the reference; a repair pass removes crossings
 //! with local operations, and where it cannot, the patches are remeshed
-//! again with the smoothed (crossing-free) surface kept around the
-//! crossings, in growing regions up to all of it: the result never
-//! self-intersects.
+//! again with shorter edges around the crossings, then with the smoothed
+//! (crossing-free) surface kept around them, in growing regions up to all
+//! of it: the result never self-intersects.
 //!
 //! ```
 //! use septa::config::Resolved;
@@ -32,6 +32,7 @@ mod isotropic;
 pub mod network;
 pub mod project;
 mod repair;
+mod sizing;
 pub mod smooth;
 
 pub use isotropic::triangle_quality;
@@ -101,6 +102,9 @@ pub struct Remeshed {
     /// Vertices kept at their smoothed positions (not remeshed) around
     /// crossings the repair pass could not remove.
     pub kept: usize,
+    /// Remeshing attempts: 1, or more where crossings were left (see
+    /// [`remesh`]).
+    pub attempts: usize,
     /// Wall time of each step.
     pub timings: RemeshTimings,
 }
@@ -123,8 +127,13 @@ pub struct RemeshTimings {
 /// Rounds of the self-intersection repair pass.
 const REPAIR_ROUNDS: usize = 20;
 
-/// Remeshing attempts keeping growing regions (1, 2, 4, 8 target edges
-/// around the crossings left) before the last, which keeps every vertex.
+/// Remeshing attempts with target edges of L/2, L/4 within L/2 of the
+/// crossings left, before those that keep the smoothed surface there.
+const REFINE_ATTEMPTS: usize = 2;
+
+/// Remeshing attempts keeping the smoothed surface in growing regions (the
+/// crossing triangles' boxes grown by 0, L/2, 1.5 L, 3.5 L), then, last,
+/// everywhere.
 const KEEP_ATTEMPTS: usize = 5;
 
 /// How far (in voxels) a remeshed triangle's centroid may lie from the
@@ -158,19 +167,37 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
         .iter()
         .cloned()
         .fold(f64::INFINITY, f64::min);
-    // Where the repair cannot remove a crossing, remesh again keeping the
-    // smoothed surface (crossing-free) around it, in growing regions; the
-    // last attempt keeps everything, so the result never self-intersects.
+    // Where the repair cannot remove a crossing, remesh again: first with
+    // shorter target edges around the crossings (finer chords follow the
+    // smoothed surface more closely), then keeping the smoothed surface
+    // (crossing-free) there, in growing regions; the last attempt keeps
+    // everything, so the result never self-intersects.
+    let target = params.target_edge;
+    let last = REFINE_ATTEMPTS + KEEP_ATTEMPTS;
     let mut regions: Vec<(DVec3, DVec3)> = Vec::new();
     let mut kept = 0;
     let mut attempt = 0;
-    let (r, intersections_left) = loop {
+    let (r, intersections_left, final_attempt) = loop {
+        let sizing = if attempt == 0 {
+            sizing::Sizing::uniform(target)
+        } else {
+            let finer = target / (1u32 << attempt.min(REFINE_ATTEMPTS)) as f64;
+            let grow = DVec3::splat(0.5 * target);
+            sizing::Sizing::with_regions(
+                target,
+                regions
+                    .iter()
+                    .map(|&(lo, hi)| (lo - grow, hi + grow, finer))
+                    .collect(),
+            )
+        };
         let mut net = net.clone();
-        if attempt == KEEP_ATTEMPTS {
+        if attempt == last {
             let all = (DVec3::splat(f64::NEG_INFINITY), DVec3::splat(f64::INFINITY));
             kept = net.keep_within(&smoothed_pos, &[all]);
-        } else if attempt > 0 {
-            let r = params.target_edge * ((1u32 << (attempt - 1)) as f64 - 1.0) * 0.5;
+        } else if attempt > REFINE_ATTEMPTS {
+            let k = attempt - REFINE_ATTEMPTS;
+            let r = target * ((1u32 << (k - 1)) as f64 - 1.0) * 0.5;
             let grown: Vec<_> = regions
                 .iter()
                 .map(|&(lo, hi)| (lo - DVec3::splat(r), hi + DVec3::splat(r)))
@@ -178,16 +205,11 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
             kept = net.keep_within(&smoothed_pos, &grown);
         }
         let clock = std::time::Instant::now();
-        let mut r = isotropic::Remesher::new(
-            mesh,
-            &net,
-            &smoothed_pos,
-            params.target_edge,
-            FIT_VOXELS * voxel,
-        )?;
+        let mut r =
+            isotropic::Remesher::new(mesh, &net, &smoothed_pos, sizing, FIT_VOXELS * voxel)?;
         timings.setup += clock.elapsed().as_secs_f64();
         // (with every vertex kept the output is the smoothed extraction as is)
-        let iterations = if attempt == KEEP_ATTEMPTS {
+        let iterations = if attempt == last {
             0
         } else {
             params.iterations
@@ -198,8 +220,8 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
         let clock = std::time::Instant::now();
         let left = r.repair_intersections(REPAIR_ROUNDS);
         timings.repair += clock.elapsed().as_secs_f64();
-        if left == 0 || attempt == KEEP_ATTEMPTS {
-            break (r, left);
+        if left == 0 || attempt == last {
+            break (r, left, attempt);
         }
         regions.extend(r.crossing_boxes());
         attempt += 1;
@@ -214,6 +236,7 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
         smoothed,
         intersections_left,
         kept,
+        attempts: final_attempt + 1,
         timings,
     })
 }

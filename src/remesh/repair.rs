@@ -118,7 +118,11 @@ impl Remesher {
             reference: &st.reference,
             eps: self.eps,
         };
-        let hi = 4.0 / 3.0 * self.target;
+        let centroid = m.face_vertices(f).map(|v| m.pos[v as usize]);
+        let hi = 4.0 / 3.0
+            * self
+                .sizing
+                .at((centroid[0] + centroid[1] + centroid[2]) / 3.0);
         let cands = candidates(m, p, f, fit, hi);
 
         'cands: for c in cands {
