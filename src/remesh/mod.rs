@@ -127,9 +127,11 @@ pub struct RemeshTimings {
 /// Rounds of the self-intersection repair pass.
 const REPAIR_ROUNDS: usize = 20;
 
-/// Remeshing attempts with target edges of L/2, L/4 within L/2 of the
-/// crossings left, before those that keep the smoothed surface there.
-const REFINE_ATTEMPTS: usize = 2;
+/// Remeshing attempts with shorter target edges (L/2, then L/4, ...)
+/// within L/2 of the crossings left, before those that also keep the
+/// smoothed surface there. One: on the noisy 512³ phantom a second (L/4)
+/// made more crossings than the first, and on a noisy 64³ it cost quality.
+const REFINE_ATTEMPTS: usize = 1;
 
 /// Remeshing attempts keeping the smoothed surface in growing regions (the
 /// crossing triangles' boxes grown by 0, L/2, 1.5 L, 3.5 L), then, last,
@@ -169,7 +171,7 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
         .fold(f64::INFINITY, f64::min);
     // Where the repair cannot remove a crossing, remesh again: first with
     // shorter target edges around the crossings (finer chords follow the
-    // smoothed surface more closely), then keeping the smoothed surface
+    // smoothed surface more closely), then also keeping the smoothed surface
     // (crossing-free) there, in growing regions; the last attempt keeps
     // everything, so the result never self-intersects.
     let target = params.target_edge;
