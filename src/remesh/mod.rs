@@ -195,8 +195,7 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
         };
         let mut net = net.clone();
         if attempt == last {
-            let all = (DVec3::splat(f64::NEG_INFINITY), DVec3::splat(f64::INFINITY));
-            kept = net.keep_within(&smoothed_pos, &[all]);
+            kept = net.keep_all();
         } else if attempt > REFINE_ATTEMPTS {
             let k = attempt - REFINE_ATTEMPTS;
             let r = target * ((1u32 << (k - 1)) as f64 - 1.0) * 0.5;
@@ -241,4 +240,61 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
         attempts: final_attempt + 1,
         timings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Resolved;
+    use crate::extract::{ExtractOptions, extract, label_infos};
+    use crate::preprocess::preprocess;
+    use crate::volume::{Dims, Geometry, LabelVolume};
+
+    /// With every vertex kept, remeshing (all its iterations) changes
+    /// nothing: the output is the smoothed extraction, the last resort of
+    /// [`remesh`] against crossings.
+    #[test]
+    fn keeping_everything_gives_the_smoothed_extraction() {
+        // two labels side by side in a background: three patches, junction curves
+        let v: Vec<i64> = (0..512)
+            .map(|i| {
+                let (x, y, z) = (i % 8, i / 8 % 8, i / 64);
+                let inside = (1..7).contains(&x) && (2..6).contains(&y) && (2..6).contains(&z);
+                if !inside {
+                    0
+                } else if x < 4 {
+                    1
+                } else {
+                    2
+                }
+            })
+            .collect();
+        let vol = LabelVolume::from_values(Dims::new(8, 8, 8).unwrap(), &v, Geometry::identity())
+            .unwrap();
+        let pre = preprocess(&vol, &Resolved::defaults(&vol));
+        let mesh = extract(
+            &pre.refined,
+            label_infos(&vol, None),
+            *vol.geometry(),
+            &ExtractOptions::default(),
+        )
+        .unwrap();
+        assert!(!mesh.junctions.is_empty());
+        let mut net = network::Network::new(&mesh);
+        let smoothed = smooth::smooth(&mesh, &net, 10, 0.5);
+        assert_eq!(net.keep_all(), mesh.vertex_count());
+        let mut r =
+            isotropic::Remesher::new(&mesh, &net, &smoothed, sizing::Sizing::uniform(2.0), 0.3)
+                .unwrap();
+        r.run(8);
+        assert_eq!(r.repair_intersections(REPAIR_ROUNDS), 0);
+        let out = r.into_mesh(&mesh);
+        assert_eq!(out.triangle_count(), mesh.triangle_count());
+        let key = |p: &DVec3| p.to_array().map(f64::to_bits);
+        let mut a: Vec<_> = out.positions.iter().map(key).collect();
+        let mut b: Vec<_> = smoothed.iter().map(key).collect();
+        a.sort_unstable();
+        b.sort_unstable();
+        assert_eq!(a, b);
+    }
 }

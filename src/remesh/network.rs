@@ -104,6 +104,21 @@ impl Network {
         kept
     }
 
+    /// Keeps every vertex where it is (see [`Network::keep_within`]).
+    pub fn keep_all(&mut self) -> usize {
+        let mut kept = 0;
+        for k in self.kind.iter_mut() {
+            let new = match *k {
+                VertexKind::Interior => VertexKind::Kept,
+                VertexKind::Curve(_) => VertexKind::Corner,
+                other => other,
+            };
+            kept += usize::from(new != *k);
+            *k = new;
+        }
+        kept
+    }
+
     /// Marks the vertices of small islands as [`VertexKind::Island`]:
     /// closed components of the mesh without junction vertices that enclose
     /// at most `max_voxels` voxels or are no longer than `extent` (mm) along
