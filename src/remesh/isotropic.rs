@@ -173,7 +173,7 @@ impl Remesher {
         Ok(r)
     }
 
-    pub(super) fn rebuild_copies(&mut self) {
+    fn rebuild_copies(&mut self) {
         self.copies.clear();
         for (p, st) in self.patches.iter().enumerate() {
             for v in st.mesh.vertices() {
