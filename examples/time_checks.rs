@@ -14,8 +14,9 @@
 use glam::DVec3;
 use septa::config::Resolved;
 use septa::extract::{ExtractOptions, extract, label_infos};
-use septa::mesh::intersect::{intersections_in, self_intersections, triangle_bvh};
-use septa::mesh::quality::{NearestBvh, QualityOptions, quality};
+use septa::geom::intersect::{intersections_in, self_intersections, triangle_bvh};
+use septa::geom::nearest::SurfaceRef;
+use septa::mesh::quality::{QualityOptions, quality};
 use septa::remesh::{RemeshParams, remesh};
 use std::io::Write;
 use std::time::Instant;
@@ -235,7 +236,13 @@ fn main() {
     let (s, _) = best(reps, || quality(m, None, &opts));
     println!("  of which without distances {s}");
     let (s, _) = best(reps, || {
-        NearestBvh::new(&mesh.positions, &mesh.triangles).is_empty()
+        SurfaceRef::new(
+            mesh.triangles
+                .iter()
+                .map(|t| t.map(|v| mesh.positions[v as usize]))
+                .collect(),
+        )
+        .is_empty()
     });
     println!("  and the nearest-point tree {s}");
     let json = serde_json::to_string_pretty(&q).unwrap();

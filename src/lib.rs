@@ -14,11 +14,12 @@
 //! 4. remeshing smooths and remeshes the patches to a target edge length.
 //!
 //! [`mesh`] holds the output type and the validator of the invariants every
-//! output keeps.
+//! output keeps; [`geom`] the geometry kernel they share.
 
 pub mod config;
 pub mod error;
 pub mod extract;
+pub mod geom;
 pub mod hyper;
 pub mod io;
 pub mod iso;

@@ -9,7 +9,7 @@ use std::collections::{BTreeMap, HashMap};
 use common::Rng;
 use glam::DVec3;
 use proptest::prelude::*;
-use septa::extract::is_degenerate;
+use septa::geom::predicates::is_degenerate;
 use septa::iso::{Decompose, IsoOptions, IsoSurface, Mode, cycle_types, iso_surface};
 use septa::mesh::InterfaceMesh;
 use septa::mesh::validate::{Options, validate};

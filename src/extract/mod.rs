@@ -38,7 +38,7 @@ mod polygon;
 mod primal;
 mod vesta;
 
-pub use polygon::{is_degenerate, min_area_triangulation};
+pub use polygon::min_area_triangulation;
 
 use glam::DVec3;
 use rayon::prelude::*;

@@ -10,20 +10,7 @@
 
 use glam::DVec3;
 
-/// Twice-area threshold (relative to the squared longest edge) below which a
-/// triangle counts as degenerate.
-pub const DEGENERATE: f64 = 1e-9;
-
-/// Whether triangle (a, b, c) has (almost) zero area.
-#[inline]
-pub fn is_degenerate(a: DVec3, b: DVec3, c: DVec3) -> bool {
-    let cross = (b - a).cross(c - a).length();
-    let longest = (b - a)
-        .length_squared()
-        .max((c - a).length_squared())
-        .max((c - b).length_squared());
-    cross <= DEGENERATE * longest
-}
+use crate::geom::predicates::is_degenerate;
 
 /// Minimum-area triangulation of a closed polygon without degenerate triangles.
 /// Returns triangles as index triples in the polygon's orientation, or `None`

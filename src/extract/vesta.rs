@@ -21,8 +21,9 @@ use glam::DVec3;
 
 use super::coarse_faces::CoarseFaces;
 use super::lattice::{Key, Lattice};
-use super::polygon::{centroid_fan, is_degenerate, min_area_triangulation, vertex_fan};
+use super::polygon::{centroid_fan, min_area_triangulation, vertex_fan};
 use super::{Decompose, Part};
+use crate::geom::predicates::is_degenerate;
 use crate::preprocess::RefinedVolume;
 use crate::star::{
     CycleStep, MaskStar, StarTable, edge_dir, edge_star, face_axis, face_center_offset,

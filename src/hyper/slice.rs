@@ -34,7 +34,7 @@ use rayon::prelude::*;
 
 use super::Hypersurface;
 use crate::error::{Error, Result};
-use crate::extract::is_degenerate;
+use crate::geom::predicates::is_degenerate;
 use crate::iso::iso_labels;
 use crate::mesh::{InterfaceMesh, Patch};
 

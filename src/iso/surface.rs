@@ -22,7 +22,8 @@ use super::grid::{Activity, Faces, Rows, WORDS_PER_TASK, funnel};
 use super::stats::TypeCounts;
 use super::table::{CellEntry, Table};
 use super::{Mode, Scalar, cpu};
-use crate::extract::{Decompose, is_degenerate};
+use crate::extract::Decompose;
+use crate::geom::predicates::is_degenerate;
 use crate::star::{edge_star, face_axis, face_octants};
 
 /// Marks a triangle corner that refers to a part-local centroid (H mode).

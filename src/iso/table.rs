@@ -37,7 +37,7 @@ use std::sync::OnceLock;
 
 use glam::DVec3;
 
-use crate::extract::is_degenerate;
+use crate::geom::predicates::is_degenerate;
 use crate::star::{
     MAX_CYCLE, ambiguous_edges, edge_star, face_axis, face_center_offset, trace_per_edge,
 };
@@ -336,7 +336,7 @@ fn chord_allowed(cycle: &[u8], ambiguous: u8, i: usize, j: usize, shared: bool) 
 fn hits_any(p: &[DVec3], tris: &[[usize; 3]], t: [usize; 3]) -> bool {
     let t = t.map(|v| v as u32);
     tris.iter()
-        .any(|s| crate::mesh::intersect::triangles_intersect(p, s.map(|v| v as u32), t))
+        .any(|s| crate::geom::predicates::triangles_intersect(p, s.map(|v| v as u32), t))
 }
 
 /// Whether two triangles of one triangulation intersect.
@@ -822,7 +822,7 @@ mod tests {
             .iter()
             .map(|k| DVec3::new(k[0] as f64, k[1] as f64, k[2] as f64) * 0.5)
             .collect();
-        let hits = crate::mesh::intersect::self_intersections(&pos, &idx);
+        let hits = crate::geom::intersect::self_intersections(&pos, &idx);
         if !hits.is_empty() {
             return Some(format!("intersecting triangles {hits:?}"));
         }

@@ -9,7 +9,6 @@
 //!
 //! [`validate`] checks the invariants every output keeps.
 
-pub mod intersect;
 pub mod quality;
 pub mod stats;
 pub mod validate;
@@ -147,30 +146,5 @@ impl InterfaceMesh {
                 a.dot(b.cross(c)) / 6.0
             })
             .sum()
-    }
-}
-
-/// Union-find over `0..n` (path halving; the smaller id becomes the root).
-pub(crate) struct Dsu(Vec<u32>);
-
-impl Dsu {
-    pub(crate) fn new(n: usize) -> Self {
-        Dsu((0..n as u32).collect())
-    }
-
-    pub(crate) fn find(&mut self, mut x: u32) -> u32 {
-        while self.0[x as usize] != x {
-            let p = self.0[x as usize];
-            self.0[x as usize] = self.0[p as usize];
-            x = p;
-        }
-        x
-    }
-
-    pub(crate) fn union(&mut self, a: u32, b: u32) {
-        let (ra, rb) = (self.find(a), self.find(b));
-        if ra != rb {
-            self.0[ra.max(rb) as usize] = ra.min(rb);
-        }
     }
 }

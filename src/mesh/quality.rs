@@ -4,8 +4,7 @@
 //! label (with its change against the reference).
 //!
 //! This file owns [`quality`] and its [`QualityReport`], and the nearest-point
-//! query it needs: [`NearestBvh`] (a flat BVH over triangles, also usable to
-//! project points onto a reference surface) and [`closest_point_on_triangle`].
+//! query it needs (through [`crate::geom::nearest`]).
 //!
 //! Definitions used throughout:
 //! - **Edges** are the distinct undirected vertex pairs of the triangles. An
@@ -39,7 +38,6 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::InterfaceMesh;
-use super::intersect::{f32_down, f32_up};
 use crate::volume::LabelId;
 
 /// Options of [`quality`].
@@ -726,7 +724,7 @@ fn distance_stats(
     };
     // exact nearest triangles from a cell grid (cheaper to build and, from a
     // hint near the answer, to query than a tree over 1-2 M triangles)
-    let bvh = NearestGrid(crate::remesh::project::SurfaceRef::new(
+    let bvh = NearestGrid(crate::geom::nearest::SurfaceRef::new(
         reference
             .triangles
             .par_iter()
@@ -836,92 +834,8 @@ fn add(part: &mut (f64, DVec3, f64, usize), x: DVec3, d2: f64) {
     part.3 += 1;
 }
 
-/// The point of triangle `abc` nearest to `p` (Ericson, *Real-Time Collision
-/// Detection* §5.1.5). Degenerate triangles (zero area, coincident corners)
-/// are handled as their longest segment.
-///
-/// ```
-/// use glam::DVec3;
-/// use septa::mesh::quality::closest_point_on_triangle;
-/// let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::Y);
-/// assert_eq!(closest_point_on_triangle(DVec3::new(0.25, 0.25, 3.0), a, b, c), DVec3::new(0.25, 0.25, 0.0));
-/// assert_eq!(closest_point_on_triangle(DVec3::new(-1.0, -1.0, 0.0), a, b, c), a);
-/// ```
-pub fn closest_point_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
-    let ab = b - a;
-    let ac = c - a;
-    let ap = p - a;
-    let d1 = ab.dot(ap);
-    let d2 = ac.dot(ap);
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
-    }
-    let bp = p - b;
-    let d3 = ab.dot(bp);
-    let d4 = ac.dot(bp);
-    if d3 >= 0.0 && d4 <= d3 {
-        return b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let den = d1 - d3;
-        return if den > 0.0 { a + ab * (d1 / den) } else { a };
-    }
-    let cp = p - c;
-    let d5 = ab.dot(cp);
-    let d6 = ac.dot(cp);
-    if d6 >= 0.0 && d5 <= d6 {
-        return c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let den = d2 - d6;
-        return if den > 0.0 { a + ac * (d2 / den) } else { a };
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
-        let den = (d4 - d3) + (d5 - d6);
-        return if den > 0.0 {
-            b + (c - b) * ((d4 - d3) / den)
-        } else {
-            b
-        };
-    }
-    let den = va + vb + vc;
-    if den > 0.0 && den.is_finite() {
-        let v = vb / den;
-        let w = vc / den;
-        let q = a + ab * v + ac * w;
-        if q.is_finite() {
-            return q;
-        }
-    }
-    // Degenerate: the nearest of the three edges.
-    let s = [
-        closest_on_segment(p, a, b),
-        closest_on_segment(p, b, c),
-        closest_on_segment(p, c, a),
-    ];
-    let mut best = s[0];
-    for q in &s[1..] {
-        if p.distance_squared(*q) < p.distance_squared(best) {
-            best = *q;
-        }
-    }
-    best
-}
-
-fn closest_on_segment(p: DVec3, a: DVec3, b: DVec3) -> DVec3 {
-    let d = b - a;
-    let l2 = d.length_squared();
-    if !(l2 > 0.0) || !l2.is_finite() {
-        return a;
-    }
-    a + d * ((p - a).dot(d) / l2).clamp(0.0, 1.0)
-}
-
 /// The quality report's nearest-triangle queries.
-struct NearestGrid(crate::remesh::project::SurfaceRef);
+struct NearestGrid(crate::geom::nearest::SurfaceRef);
 
 impl NearestGrid {
     fn is_empty(&self) -> bool {
@@ -935,289 +849,15 @@ impl NearestGrid {
         let (point, triangle) = self.0.project_from(p, hint);
         Some(Nearest {
             triangle,
-            point,
             distance_squared: (point - p).length_squared(),
         })
     }
 }
 
-/// Result of [`NearestBvh::nearest`].
+/// A nearest point on the reference: its triangle, the point and its
+/// squared distance.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Nearest {
-    /// Index of the nearest triangle in the slice given to [`NearestBvh::new`].
-    pub triangle: u32,
-    /// The nearest point on it.
-    pub point: DVec3,
-    /// Squared distance from the query point.
-    pub distance_squared: f64,
-}
-
-#[derive(Clone, Copy, Default)]
-struct Node {
-    lo: [f32; 3],
-    hi: [f32; 3],
-    /// Leaf: first slot in `order`; inner: index of the right child (the left
-    /// child follows the node).
-    start: u32,
-    /// Leaf: number of triangles; inner: 0.
-    count: u32,
-}
-
-const NEAREST_LEAF: usize = 4;
-
-/// A bounding-volume hierarchy over triangles for nearest-point queries:
-/// median splits on the longest centroid axis, built in parallel into a
-/// depth-first node array (the same tree for any thread count), boxes stored
-/// as `f32` rounded outward. Triangles with a vertex id out of range are
-/// left out.
-pub struct NearestBvh<'a> {
-    positions: &'a [DVec3],
-    triangles: &'a [[u32; 3]],
-    nodes: Vec<Node>,
-    /// Triangle ids in leaf order.
-    order: Vec<u32>,
-}
-
-impl<'a> NearestBvh<'a> {
-    /// Builds the hierarchy over `triangles` (vertex ids into `positions`).
-    pub fn new(positions: &'a [DVec3], triangles: &'a [[u32; 3]]) -> Self {
-        let nv = positions.len();
-        let mut order: Vec<u32> = (0..triangles.len() as u32)
-            .filter(|&t| triangles[t as usize].iter().all(|&v| (v as usize) < nv))
-            .collect();
-        let centroids: Vec<[f32; 3]> = triangles
-            .par_iter()
-            .map(|t| {
-                if t.iter().any(|&v| v as usize >= nv) {
-                    return [0.0; 3];
-                }
-                let [a, b, c] = t.map(|v| positions[v as usize]);
-                let m = (a + b + c) / 3.0;
-                [m.x as f32, m.y as f32, m.z as f32]
-            })
-            .collect();
-        let mut counts = HashMap::new();
-        let n_nodes = node_count(order.len(), &mut counts);
-        let mut nodes = vec![Node::default(); if order.is_empty() { 0 } else { n_nodes }];
-        if !order.is_empty() {
-            let ctx = BuildCtx {
-                positions,
-                triangles,
-                centroids: &centroids,
-                counts: &counts,
-            };
-            build(&ctx, &mut order, 0, 0, &mut nodes);
-        }
-        NearestBvh {
-            positions,
-            triangles,
-            nodes,
-            order,
-        }
-    }
-
-    /// True when there is no (valid) triangle.
-    pub fn is_empty(&self) -> bool {
-        self.order.is_empty()
-    }
-
-    /// The triangle nearest to `p`. `hint` is a triangle id expected to be
-    /// close (e.g. the answer for a neighbouring point), or `u32::MAX`; it only
-    /// speeds the search up. `None` when the hierarchy is empty.
-    pub fn nearest(&self, p: DVec3, hint: u32) -> Option<Nearest> {
-        if self.order.is_empty() {
-            return None;
-        }
-        let mut best = Nearest {
-            triangle: u32::MAX,
-            point: DVec3::ZERO,
-            distance_squared: f64::INFINITY,
-        };
-        if let Some(t) = self.triangles.get(hint as usize) {
-            if t.iter().all(|&v| (v as usize) < self.positions.len()) {
-                let [a, b, c] = t.map(|v| self.positions[v as usize]);
-                let q = closest_point_on_triangle(p, a, b, c);
-                best = Nearest {
-                    triangle: hint,
-                    point: q,
-                    distance_squared: p.distance_squared(q),
-                };
-            }
-        }
-        let mut stack = [(0u32, 0.0f64); 128];
-        let mut sp = 1;
-        stack[0] = (0, box_distance2(&self.nodes[0], p));
-        while sp > 0 {
-            sp -= 1;
-            let (ni, d2) = stack[sp];
-            if d2 >= best.distance_squared && best.triangle != u32::MAX {
-                continue;
-            }
-            let node = &self.nodes[ni as usize];
-            if node.count > 0 {
-                let s = node.start as usize;
-                for &t in &self.order[s..s + node.count as usize] {
-                    let [a, b, c] = self.triangles[t as usize].map(|v| self.positions[v as usize]);
-                    let q = closest_point_on_triangle(p, a, b, c);
-                    let d2 = p.distance_squared(q);
-                    if d2 < best.distance_squared || best.triangle == u32::MAX {
-                        best = Nearest {
-                            triangle: t,
-                            point: q,
-                            distance_squared: d2,
-                        };
-                    }
-                }
-            } else {
-                let (l, r) = (ni + 1, node.start);
-                let dl = box_distance2(&self.nodes[l as usize], p);
-                let dr = box_distance2(&self.nodes[r as usize], p);
-                let (near, dn, far, df) = if dl <= dr {
-                    (l, dl, r, dr)
-                } else {
-                    (r, dr, l, dl)
-                };
-                if sp + 2 > stack.len() {
-                    // Cannot happen for median splits (depth ≤ 33); stay safe.
-                    continue;
-                }
-                if df < best.distance_squared || best.triangle == u32::MAX {
-                    stack[sp] = (far, df);
-                    sp += 1;
-                }
-                if dn < best.distance_squared || best.triangle == u32::MAX {
-                    stack[sp] = (near, dn);
-                    sp += 1;
-                }
-            }
-        }
-        (best.triangle != u32::MAX).then_some(best)
-    }
-}
-
-fn box_distance2(n: &Node, p: DVec3) -> f64 {
-    let mut d2 = 0.0;
-    for k in 0..3 {
-        let x = p[k];
-        let lo = n.lo[k] as f64;
-        let hi = n.hi[k] as f64;
-        let d = if x < lo {
-            lo - x
-        } else if x > hi {
-            x - hi
-        } else {
-            0.0
-        };
-        d2 += d * d;
-    }
-    d2
-}
-
-/// Nodes of the tree over `n` triangles (memoised; sizes along any path are
-/// ⌊n/2^k⌋ or ⌈n/2^k⌉, so the memo stays small).
-fn node_count(n: usize, memo: &mut HashMap<usize, usize>) -> usize {
-    if n <= NEAREST_LEAF {
-        return 1;
-    }
-    if let Some(&c) = memo.get(&n) {
-        return c;
-    }
-    let c = 1 + node_count(n / 2, memo) + node_count(n - n / 2, memo);
-    memo.insert(n, c);
-    c
-}
-
-struct BuildCtx<'a> {
-    positions: &'a [DVec3],
-    triangles: &'a [[u32; 3]],
-    centroids: &'a [[f32; 3]],
-    counts: &'a HashMap<usize, usize>,
-}
-
-impl BuildCtx<'_> {
-    fn count(&self, n: usize) -> usize {
-        if n <= NEAREST_LEAF {
-            1
-        } else {
-            self.counts[&n]
-        }
-    }
-}
-
-/// Builds the subtree over `items` (slots `offset..` of the order) into
-/// `nodes` (exactly `count(items.len())` long, this node first).
-fn build(ctx: &BuildCtx, items: &mut [u32], offset: usize, node_base: u32, nodes: &mut [Node]) {
-    let n = items.len();
-    if n <= NEAREST_LEAF {
-        let mut lo = [f32::MAX; 3];
-        let mut hi = [f32::MIN; 3];
-        for &t in items.iter() {
-            for v in ctx.triangles[t as usize] {
-                let x = ctx.positions[v as usize];
-                for k in 0..3 {
-                    lo[k] = lo[k].min(f32_down(x[k]));
-                    hi[k] = hi[k].max(f32_up(x[k]));
-                }
-            }
-        }
-        nodes[0] = Node {
-            lo,
-            hi,
-            start: offset as u32,
-            count: n as u32,
-        };
-        return;
-    }
-    let mut clo = [f32::MAX; 3];
-    let mut chi = [f32::MIN; 3];
-    for &t in items.iter() {
-        let c = ctx.centroids[t as usize];
-        for k in 0..3 {
-            clo[k] = clo[k].min(c[k]);
-            chi[k] = chi[k].max(c[k]);
-        }
-    }
-    let ext = [chi[0] - clo[0], chi[1] - clo[1], chi[2] - clo[2]];
-    let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
-        0
-    } else if ext[1] >= ext[2] {
-        1
-    } else {
-        2
-    };
-    let mid = n / 2;
-    items.select_nth_unstable_by(mid, |&a, &b| {
-        ctx.centroids[a as usize][axis]
-            .total_cmp(&ctx.centroids[b as usize][axis])
-            .then(a.cmp(&b))
-    });
-    let left_nodes = ctx.count(mid);
-    let (this, rest) = nodes.split_at_mut(1);
-    let (left, right) = rest.split_at_mut(left_nodes);
-    let (li, ri) = items.split_at_mut(mid);
-    let right_index = node_base + 1 + left_nodes as u32;
-    if n > 8192 {
-        rayon::join(
-            || build(ctx, li, offset, node_base + 1, left),
-            || build(ctx, ri, offset + mid, right_index, right),
-        );
-    } else {
-        build(ctx, li, offset, node_base + 1, left);
-        build(ctx, ri, offset + mid, right_index, right);
-    }
-    let (a, b) = (left[0], right[0]);
-    this[0] = Node {
-        lo: [
-            a.lo[0].min(b.lo[0]),
-            a.lo[1].min(b.lo[1]),
-            a.lo[2].min(b.lo[2]),
-        ],
-        hi: [
-            a.hi[0].max(b.hi[0]),
-            a.hi[1].max(b.hi[1]),
-            a.hi[2].max(b.hi[2]),
-        ],
-        start: right_index,
-        count: 0,
-    };
+struct Nearest {
+    triangle: u32,
+    distance_squared: f64,
 }

@@ -1,6 +1,7 @@
 //! Per-patch topology and sizes for reports: triangles, vertices, edges,
 //! boundary edges and loops, Euler characteristic, area.
 
+use crate::geom::Dsu;
 use rayon::prelude::*;
 
 use super::InterfaceMesh;
@@ -72,19 +73,12 @@ fn components(edges: &[(u32, u32)]) -> usize {
     ids.sort_unstable();
     ids.dedup();
     let index = |v: u32| ids.binary_search(&v).expect("vertex listed") as u32;
-    let mut parent: Vec<u32> = (0..ids.len() as u32).collect();
-    fn find(p: &mut [u32], mut x: u32) -> u32 {
-        while p[x as usize] != x {
-            p[x as usize] = p[p[x as usize] as usize];
-            x = p[x as usize];
-        }
-        x
-    }
+    let mut dsu = Dsu::new(ids.len());
     let mut count = ids.len();
     for &(a, b) in edges {
-        let (ra, rb) = (find(&mut parent, index(a)), find(&mut parent, index(b)));
+        let (ra, rb) = (dsu.find(index(a)), dsu.find(index(b)));
         if ra != rb {
-            parent[ra.max(rb) as usize] = ra.min(rb);
+            dsu.union(ra, rb);
             count -= 1;
         }
     }

@@ -21,9 +21,10 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::Dsu;
 use super::InterfaceMesh;
-use crate::extract::is_degenerate;
+use crate::geom::Dsu;
+use crate::geom::intersect::self_intersections;
+use crate::geom::predicates::is_degenerate;
 use crate::preprocess::RefinedVolume;
 use crate::volume::LabelId;
 
@@ -161,9 +162,7 @@ pub fn validate(mesh: &InterfaceMesh, opts: &Options) -> Report {
     report.checks.push(orientation);
     report.labels = labels;
     if opts.intersections {
-        report
-            .checks
-            .push(super::intersect::check_self_intersections(mesh));
+        report.checks.push(check_self_intersections(mesh));
     }
     if let Some((rv, tol)) = opts.fidelity {
         report.checks.push(check_fidelity(mesh, &stars, rv, tol));
@@ -950,4 +949,24 @@ fn distance_to_label(rv: &RefinedVolume, p: DVec3, l: LabelId, max: f64) -> f64 
         }
     }
     best
+}
+
+/// The check of invariant 4 after remeshing: no two triangles intersect
+/// other than along what they share.
+pub fn check_self_intersections(mesh: &InterfaceMesh) -> Check {
+    let mut c = Check {
+        name: "no self-intersections",
+        failures: 0,
+        examples: Vec::new(),
+    };
+    for (i, j) in self_intersections(&mesh.positions, &mesh.triangles) {
+        c.failures += 1;
+        if c.examples.len() < 8 {
+            c.examples.push(format!(
+                "triangles {i} {:?} and {j} {:?}",
+                mesh.triangles[i as usize], mesh.triangles[j as usize]
+            ));
+        }
+    }
+    c
 }

@@ -23,23 +23,11 @@ use rayon::prelude::*;
 
 use super::halfedge::{HalfedgeMesh, NONE};
 use super::network::{Network, VertexKind};
-use super::project::{CurveRef, NO_TRIANGLE, SurfaceRef};
 use super::sizing::Sizing;
 use crate::error::{Error, Result};
-use crate::extract::is_degenerate;
+use crate::geom::nearest::{CurveRef, NO_TRIANGLE, SurfaceRef};
+use crate::geom::predicates::{is_degenerate, triangle_quality};
 use crate::mesh::{InterfaceMesh, JunctionCurve};
-
-/// Triangle quality in (0, 1]: 4√3 · area / Σ edge², 1 for an equilateral triangle.
-#[inline]
-pub fn triangle_quality(a: DVec3, b: DVec3, c: DVec3) -> f64 {
-    let area2 = (b - a).cross(c - a).length();
-    let sum = (b - a).length_squared() + (c - b).length_squared() + (a - c).length_squared();
-    if sum == 0.0 {
-        0.0
-    } else {
-        2.0 * 3f64.sqrt() * area2 / sum
-    }
-}
 
 /// Lowest quality a collapse, flip or move may create (unless the triangles
 /// it replaces were worse).

@@ -30,12 +30,9 @@
 pub mod halfedge;
 mod isotropic;
 pub mod network;
-pub mod project;
 mod repair;
 mod sizing;
 pub mod smooth;
-
-pub use isotropic::triangle_quality;
 
 use glam::DVec3;
 

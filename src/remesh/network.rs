@@ -5,8 +5,8 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::mesh::intersect::Bvh;
-use crate::mesh::{Dsu, InterfaceMesh};
+use crate::geom::{Bvh, Dsu};
+use crate::mesh::InterfaceMesh;
 
 /// Role of a vertex during smoothing and remeshing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -16,8 +16,10 @@ use hashbrown::HashSet;
 
 use super::halfedge::{HalfedgeMesh, NONE};
 use super::isotropic::{Fit, Remesher, Snapshot, collapse_geometry_ok, flip_geometry_ok, move_ok};
-use super::project::NO_TRIANGLE;
-use crate::mesh::intersect::{Bvh, self_intersections, triangles_intersect};
+use crate::geom::Bvh;
+use crate::geom::intersect::self_intersections;
+use crate::geom::nearest::NO_TRIANGLE;
+use crate::geom::predicates::triangles_intersect;
 
 /// A candidate change: per patch it touches, the faces it replaces and the
 /// triangles (local vertex ids, with an optional moved vertex) it makes.
@@ -358,7 +360,7 @@ fn candidates(m: &HalfedgeMesh, patch: u32, f: u32, fit: Fit, hi: f64) -> Vec<Ca
                 }
             });
             (y - x).cross(z - x).dot(n) > 0.0
-                && !crate::extract::is_degenerate(x, y, z)
+                && !crate::geom::predicates::is_degenerate(x, y, z)
                 && fit.ok(x, y, z, NO_TRIANGLE)
         });
         if ok {

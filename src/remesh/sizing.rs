@@ -6,7 +6,7 @@
 
 use glam::DVec3;
 
-use crate::mesh::intersect::Bvh;
+use crate::geom::Bvh;
 
 /// Target edge length (mm) at any point.
 pub(crate) struct Sizing {

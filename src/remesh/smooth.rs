@@ -11,8 +11,8 @@ use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
 use super::network::{Network, VertexKind};
+use crate::geom::intersect::{intersections_in, self_intersections_and_bvh, triangle_box};
 use crate::mesh::InterfaceMesh;
-use crate::mesh::intersect::{intersections_in, self_intersections_and_bvh, triangle_box};
 
 /// Taubin's pass factors: a shrinking step λ and an inflating step μ (|μ| > λ).
 const LAMBDA: f64 = 0.5;

@@ -1,24 +1,15 @@
-//! Projection onto the smoothed reference: the nearest point on a patch's
-//! reference triangles (walks across the reference from a hint, made exact by
-//! a uniform cell grid), or on a junction curve's reference polyline (BVH
-//! nearest-point queries).
+//! Nearest-point queries: the nearest point on a triangle surface
+//! ([`SurfaceRef`]: walks across the surface from a hint, made exact by a
+//! uniform cell grid; and whether a triangle follows the surface), or on a
+//! polyline ([`CurveRef`]: BVH nearest-item queries). The remesher projects
+//! onto its smoothed reference with them; the quality report measures
+//! distances with them.
 
 use glam::DVec3;
 
-use crate::mesh::intersect::Bvh;
-
-/// Nearest point to `p` on triangle (a, b, c) (the one of the quality report).
-pub use crate::mesh::quality::closest_point_on_triangle as closest_on_triangle;
-
-/// Nearest point to `p` on segment [a, b].
-pub fn closest_on_segment(p: DVec3, a: DVec3, b: DVec3) -> DVec3 {
-    let d = b - a;
-    let l2 = d.length_squared();
-    if l2 == 0.0 {
-        return a;
-    }
-    a + d * ((p - a).dot(d) / l2).clamp(0.0, 1.0)
-}
+use super::bvh::Bvh;
+use super::grid::CellGrid;
+use super::predicates::{closest_on_segment, closest_point_on_triangle as closest_on_triangle};
 
 /// No triangle (no neighbour across an edge, or no hint).
 pub const NO_TRIANGLE: u32 = u32::MAX;
@@ -54,109 +45,6 @@ pub struct SurfaceRef {
     /// Neighbour across edge k (corners k, k + 1), or [`NO_TRIANGLE`].
     adjacent: Vec<[u32; 3]>,
     grid: CellGrid,
-}
-
-/// Triangles binned into the cells of a uniform grid their boxes overlap
-/// (compressed rows by counting sort). Queries near the surface (the usual
-/// case: a point a fraction of a cell from it) read one to eight cells, which
-/// is cheaper than descending a tree.
-struct CellGrid {
-    lo: DVec3,
-    /// Cell edge length (mm) and its inverse.
-    cell: f64,
-    inv: f64,
-    dims: [usize; 3],
-    /// Items of cell c: `items[start[c]..start[c + 1]]`.
-    start: Vec<u32>,
-    items: Vec<u32>,
-}
-
-/// Cells per triangle the grid aims at (a few triangles per occupied cell).
-const CELLS_PER_TRIANGLE: f64 = 8.0;
-
-impl CellGrid {
-    fn new(boxes: &[(DVec3, DVec3)]) -> Self {
-        let (lo, hi) = boxes.iter().fold(
-            (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
-            |(lo, hi), b| (lo.min(b.0), hi.max(b.1)),
-        );
-        if boxes.is_empty() {
-            return CellGrid {
-                lo: DVec3::ZERO,
-                cell: 1.0,
-                inv: 1.0,
-                dims: [1; 3],
-                start: vec![0, 0],
-                items: Vec::new(),
-            };
-        }
-        // cells of about the mean triangle size, at most a few per triangle
-        let ext = (hi - lo).max(DVec3::splat(1e-9));
-        let mean_size =
-            boxes.iter().map(|b| (b.1 - b.0).max_element()).sum::<f64>() / boxes.len() as f64;
-        let by_count = (ext.x * ext.y * ext.z / (CELLS_PER_TRIANGLE * boxes.len() as f64)).cbrt();
-        let cell = mean_size.max(by_count).max(ext.max_element() * 1e-6);
-        let dims = (ext / cell).to_array().map(|d| d.floor() as usize + 1);
-        let mut grid = CellGrid {
-            lo,
-            cell,
-            inv: 1.0 / cell,
-            dims,
-            start: Vec::new(),
-            items: Vec::new(),
-        };
-        let ncells = dims[0] * dims[1] * dims[2];
-        let mut start = vec![0u32; ncells + 1];
-        for b in boxes {
-            grid.for_cells(b.0, b.1, |c| start[c + 1] += 1);
-        }
-        for c in 0..ncells {
-            start[c + 1] += start[c];
-        }
-        let mut fill = start.clone();
-        let mut items = vec![0u32; start[ncells] as usize];
-        for (i, b) in boxes.iter().enumerate() {
-            grid.for_cells(b.0, b.1, |c| {
-                items[fill[c] as usize] = i as u32;
-                fill[c] += 1;
-            });
-        }
-        grid.start = start;
-        grid.items = items;
-        grid
-    }
-
-    /// Cell coordinates of `p`, clamped to the grid.
-    #[inline]
-    fn coords(&self, p: DVec3) -> [usize; 3] {
-        let q = (p - self.lo) * self.inv;
-        [0, 1, 2].map(|k| (q[k].max(0.0) as usize).min(self.dims[k] - 1))
-    }
-
-    /// Calls `f` with every cell overlapping box [lo, hi] (clamped to the grid).
-    #[inline]
-    fn for_cells(&self, lo: DVec3, hi: DVec3, mut f: impl FnMut(usize)) {
-        let (a, b) = (self.coords(lo), self.coords(hi));
-        for z in a[2]..=b[2] {
-            for y in a[1]..=b[1] {
-                let row = (z * self.dims[1] + y) * self.dims[0];
-                for x in a[0]..=b[0] {
-                    f(row + x);
-                }
-            }
-        }
-    }
-
-    #[inline]
-    fn cell_items(&self, c: usize) -> &[u32] {
-        &self.items[self.start[c] as usize..self.start[c + 1] as usize]
-    }
-
-    /// Number of cells overlapping box [lo, hi].
-    fn cells_in(&self, lo: DVec3, hi: DVec3) -> usize {
-        let (a, b) = (self.coords(lo), self.coords(hi));
-        (0..3).map(|k| b[k] - a[k] + 1).product()
-    }
 }
 
 /// Squared distance from `p` to the bounding box of triangle `t`.
@@ -223,10 +111,9 @@ impl SurfaceRef {
             ];
             let mut next = NO_TRIANGLE;
             let mut most = 0.0;
-            for k in 0..3 {
-                let across = self.adjacent[cur as usize][k];
-                if beyond[k] < most && across != NO_TRIANGLE && !recent.contains(&across) {
-                    (next, most) = (across, beyond[k]);
+            for (&b, &across) in beyond.iter().zip(&self.adjacent[cur as usize]) {
+                if b < most && across != NO_TRIANGLE && !recent.contains(&across) {
+                    (next, most) = (across, b);
                 }
             }
             if next == NO_TRIANGLE {
