@@ -16,7 +16,8 @@
 //! by = "myocardium"            # ... a layer of this label goes between them
 //!
 //! [remesh]
-//! target_edge = 2.0            # mm
+//! target_edge = 2.0            # mm: the largest edge, where structures leave room
+//! min_edge = 0.5               # mm: the smallest, where label regions are thin
 //! ```
 //!
 //! Parsing ([`Config::from_toml_str`]) checks the syntax and the keys: unknown keys
@@ -65,8 +66,11 @@ pub struct Separation {
 pub struct RemeshOptions {
     /// Remesh at all (default true).
     pub enabled: Option<bool>,
-    /// Target edge length in mm (default: twice the mean voxel spacing).
+    /// Largest target edge length in mm (default: twice the mean voxel spacing).
     pub target_edge: Option<f64>,
+    /// Smallest target edge length in mm, where label regions are thin
+    /// (default: half the smallest voxel spacing).
+    pub min_edge: Option<f64>,
     /// Smoothing iterations (default 10).
     pub smooth_iterations: Option<u32>,
     /// Largest displacement of a vertex by smoothing, in voxels per axis (default 0.5).

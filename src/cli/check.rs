@@ -61,9 +61,7 @@ pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
         let q = quality(
             &ply.mesh,
             reference.as_ref(),
-            &QualityOptions {
-                target_edge_mm: args.target_edge.unwrap_or(0.0),
-            },
+            &QualityOptions::target(args.target_edge.unwrap_or(0.0)),
         );
         stage.done();
         Some(q)

@@ -66,9 +66,15 @@ pub struct ExtractArgs {
     /// Write the extraction as it is: no smoothing, no remeshing (config: `[remesh] enabled = false`).
     #[arg(long)]
     pub no_remesh: bool,
-    /// Target edge length of the remeshed patches, in mm (default: twice the mean voxel spacing).
+    /// Largest edge length of the remeshed patches, in mm: the target wherever the structures
+    /// leave room for it (default: twice the mean voxel spacing). Edges get shorter where label
+    /// regions are thinner (a sizing field from the volume), down to --min-edge.
     #[arg(long, value_name = "MM")]
     pub target_edge: Option<f64>,
+    /// Smallest edge length of the remeshed patches, in mm, where label regions are thin
+    /// (default: half the smallest voxel spacing).
+    #[arg(long, value_name = "MM")]
+    pub min_edge: Option<f64>,
     /// Taubin λ/μ smoothing passes that remove the voxel staircase before remeshing (default 10).
     #[arg(long, value_name = "N")]
     pub smooth_iterations: Option<u32>,
@@ -96,6 +102,7 @@ fn remesh_params(
             .target_edge
             .or(cfg.target_edge)
             .unwrap_or_else(|| RemeshParams::default_target(geometry)),
+        min_edge: args.min_edge.or(cfg.min_edge),
         smooth_iterations: args
             .smooth_iterations
             .or(cfg.smooth_iterations)
@@ -162,21 +169,22 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
                 "smoothing and remeshing to {:.2} mm edges",
                 params.target_edge
             ));
-            let out = remesh(&mesh, &params)?;
+            let sizing = params.sizing(pre.refined.grid(), v.geometry());
+            let out = remesh(&mesh, &sizing, &params)?;
             let q = quality(
                 &out.mesh,
                 Some(&mesh),
                 &QualityOptions {
                     target_edge_mm: params.target_edge,
+                    local: Some(&sizing),
                 },
             );
             timings.push(("remesh", stage.done()));
-            let fallback = Fallback {
-                attempts: out.attempts,
-                kept: out.kept,
-                extraction_vertices: mesh.vertex_count(),
+            let kept = Kept {
+                share: out.kept_share,
+                islands: out.island_share,
             };
-            (out.mesh, Some((params, q, out.timings, fallback)))
+            (out.mesh, Some((params, q, out.timings, kept)))
         }
         None => (mesh, None),
     };
@@ -252,8 +260,8 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
         "extraction": {"triangles": extraction_size.0, "vertices": extraction_size.1},
         "quality": remeshed.as_ref().map(|r| &r.1),
         "remesh_steps_s": remeshed.as_ref().map(|r| r.2),
-        "remesh_attempts": remeshed.as_ref().map(|r| r.3.attempts),
-        "remesh_kept_vertices": remeshed.as_ref().map(|r| r.3.kept),
+        "remesh_kept_share": remeshed.as_ref().map(|r| r.3.share),
+        "remesh_kept_islands_share": remeshed.as_ref().map(|r| r.3.islands),
         "validation": {"passed": report.passed(), "checks": report.checks},
         "timings_s": timings.iter().map(|(k, d)| ((*k).to_string(), serde_json::json!(d.as_secs_f64()))).collect::<serde_json::Map<_, _>>(),
     });
@@ -277,10 +285,10 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
         files.len(),
         extraction_size,
     );
-    if let Some((_, q, _, fallback)) = &remeshed {
+    if let Some((_, q, _, kept)) = &remeshed {
         ui.say("remeshing quality (distance and volume change against the unsmoothed extraction):");
         ui.say(q.summary().trim_end());
-        fallback.report(ui);
+        kept.report(ui);
     }
     if report.passed() {
         Ok(ExitCode::SUCCESS)
@@ -292,42 +300,32 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-/// What the remesher did where crossings were left (see `septa::remesh::remesh`).
-struct Fallback {
-    attempts: usize,
-    kept: usize,
-    extraction_vertices: usize,
+/// How much of the surface the remesher left as extracted.
+struct Kept {
+    share: f64,
+    islands: f64,
 }
 
-impl Fallback {
+impl Kept {
     fn report(&self, ui: &Ui) {
-        if self.attempts > 1 {
-            ui.say(format!(
-                "crossings  remeshed {} times: shorter edges around places where remeshed sheets \
-                 would have crossed{}",
-                self.attempts,
-                if self.kept > 0 {
-                    format!(
-                        ", {} vertices kept at their smoothed positions (not remeshed)",
-                        self.kept
-                    )
-                } else {
-                    String::new()
-                }
-            ));
-        }
-        // most of the surface kept: the target is longer than the structures are thin
-        if self.kept * 10 > self.extraction_vertices {
+        ui.say(format!(
+            "kept       {:.2} % of the surface as extracted ({:.2} % small islands, kept by design; \
+             the rest where no operation could be done without two sheets crossing)",
+            100.0 * self.share,
+            100.0 * self.islands
+        ));
+        // much of it kept: structures thinner than the smallest edge
+        if self.share - self.islands > 0.1 {
             ui.warn(format!(
-                "{:.0} % of the surface kept at the extraction's resolution: the target edge is too \
-                 long for the thinnest structures here (a smaller --target-edge remeshes them)",
-                100.0 * self.kept as f64 / self.extraction_vertices.max(1) as f64
+                "{:.0} % of the surface stayed at the extraction's resolution: structures there are \
+                 thinner than the smallest edge (a smaller --min-edge remeshes them)",
+                100.0 * (self.share - self.islands)
             ));
         }
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 fn summarize(
     ui: &Ui,
     args: &ExtractArgs,

@@ -140,10 +140,23 @@ pub(crate) fn f32_up(x: f64) -> f32 {
 
 /// Whether triangles `s` and `t` intersect beyond their shared vertices/edge.
 pub fn triangles_intersect(p: &[DVec3], s: [u32; 3], t: [u32; 3]) -> bool {
+    // (built element by element: `map` copies through the stack in a way
+    // that stalls store forwarding)
+    let sp = [p[s[0] as usize], p[s[1] as usize], p[s[2] as usize]];
+    let tp = [p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]];
+    let sk = [s[0] as u64, s[1] as u64, s[2] as u64];
+    let tk = [t[0] as u64, t[1] as u64, t[2] as u64];
+    triangles_cross(&sp, &sk, &tp, &tk)
+}
+
+/// [`triangles_intersect`] for triangles given by their corner positions and
+/// vertex identities (`sk`, `tk`: equal keys are the same vertex, which the
+/// triangles may share without intersecting).
+pub fn triangles_cross(sp: &[DVec3; 3], sk: &[u64; 3], tp: &[DVec3; 3], tk: &[u64; 3]) -> bool {
     let mut shared = [(0usize, 0usize); 3];
     let mut n_shared = 0;
-    for (i, sv) in s.iter().enumerate() {
-        for (j, tv) in t.iter().enumerate() {
+    for (i, sv) in sk.iter().enumerate() {
+        for (j, tv) in tk.iter().enumerate() {
             if sv == tv {
                 shared[n_shared] = (i, j);
                 n_shared += 1;
@@ -151,10 +164,7 @@ pub fn triangles_intersect(p: &[DVec3], s: [u32; 3], t: [u32; 3]) -> bool {
         }
     }
     let shared = &shared[..n_shared];
-    // (built element by element: `map` copies through the stack in a way
-    // that stalls store forwarding)
-    let sp = [p[s[0] as usize], p[s[1] as usize], p[s[2] as usize]];
-    let tp = [p[t[0] as usize], p[t[1] as usize], p[t[2] as usize]];
+    let (sp, tp) = (*sp, *tp);
     if n_shared < 2 && (separated_by_plane(&sp, &tp) || separated_by_plane(&tp, &sp)) {
         return false;
     }

@@ -40,20 +40,31 @@ use serde::Serialize;
 use super::InterfaceMesh;
 use crate::volume::LabelId;
 
-/// Options of [`quality`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct QualityOptions {
-    /// Target edge length L in mm. When not a positive finite number, the mean
-    /// edge length of the mesh is used (the relative figures then measure
-    /// uniformity only).
-    pub target_edge_mm: f64,
+/// A target edge length that depends on the position (the remesher's sizing
+/// field): edges are measured against the target at their midpoint.
+pub trait TargetEdges: Sync {
+    /// The target edge length (mm) at `p` (LPS mm).
+    fn target_at(&self, p: DVec3) -> f64;
 }
 
-impl Default for QualityOptions {
-    /// No target: edge lengths are measured against their mean.
-    fn default() -> Self {
+/// Options of [`quality`].
+#[derive(Clone, Copy, Default)]
+pub struct QualityOptions<'a> {
+    /// Target edge length L in mm (the largest, with `local`). When not a
+    /// positive finite number, the mean edge length of the mesh is used (the
+    /// relative figures then measure uniformity only).
+    pub target_edge_mm: f64,
+    /// A local target h(x): edges are then measured against h at their
+    /// midpoint ([`EdgeStats::local`]).
+    pub local: Option<&'a dyn TargetEdges>,
+}
+
+impl QualityOptions<'_> {
+    /// Edges measured against one target length (mm).
+    pub fn target(mm: f64) -> Self {
         QualityOptions {
-            target_edge_mm: 0.0,
+            target_edge_mm: mm,
+            local: None,
         }
     }
 }
@@ -98,8 +109,15 @@ pub struct EdgeStats {
     pub mean_rel: f64,
     /// Standard deviation / L.
     pub std_rel: f64,
-    /// Share of edges with length in [0.8 L, 4/3 L] (0..1).
+    /// Share of edges with length in [0.8 L, 4/3 L] (0..1), L the target at
+    /// the edge's midpoint when `local`.
     pub within_range: f64,
+    /// True when edges were measured against a local target h(x): then
+    /// `mean_rel` and `std_rel` are of length / h(midpoint).
+    pub local: bool,
+    /// The smallest and largest target at the edges' midpoints (mm).
+    pub target_min_mm: f64,
+    pub target_max_mm: f64,
 }
 
 /// Triangle angles, in degrees.
@@ -221,7 +239,7 @@ pub fn quality(
     opts: &QualityOptions,
 ) -> QualityReport {
     let topo = Topology::new(mesh);
-    let edges = edge_stats(mesh, &topo, opts.target_edge_mm);
+    let edges = edge_stats(mesh, &topo, opts.target_edge_mm, opts.local);
     let angles = angle_stats(mesh);
     let valence = valence_stats(mesh, &topo);
     let distance = reference.map(|r| distance_stats(mesh, &topo.edges, r));
@@ -248,16 +266,30 @@ impl QualityReport {
             self.vertices, self.triangles, self.patches, self.edges.count, self.edges.boundary
         ));
         let e = &self.edges;
-        s.push_str(&format!(
-            "edges      L = {:.3} mm{}: mean {:.3} L, std {:.3} L; {} within [0.8 L, 1.33 L]; min {:.3} mm, max {:.3} mm\n",
-            e.target_mm,
-            if e.target_is_mean { " (mean)" } else { "" },
-            e.mean_rel,
-            e.std_rel,
-            pct(e.within_range),
-            e.min_mm,
-            e.max_mm
-        ));
+        if e.local {
+            s.push_str(&format!(
+                "edges      h(x) from {:.3} to {:.3} mm (largest L = {:.3} mm): length / h mean {:.3}, std {:.3}; {} within [0.8 h, 1.33 h]; min {:.3} mm, max {:.3} mm\n",
+                e.target_min_mm,
+                e.target_max_mm,
+                e.target_mm,
+                e.mean_rel,
+                e.std_rel,
+                pct(e.within_range),
+                e.min_mm,
+                e.max_mm
+            ));
+        } else {
+            s.push_str(&format!(
+                "edges      L = {:.3} mm{}: mean {:.3} L, std {:.3} L; {} within [0.8 L, 1.33 L]; min {:.3} mm, max {:.3} mm\n",
+                e.target_mm,
+                if e.target_is_mean { " (mean)" } else { "" },
+                e.mean_rel,
+                e.std_rel,
+                pct(e.within_range),
+                e.min_mm,
+                e.max_mm
+            ));
+        }
         let a = &self.angles;
         s.push_str(&format!(
             "angles     min {:.1}°, 1st percentile {:.1}°; {} ≥ 20°, {} ≥ 30°; max {:.1}°{}\n",
@@ -442,22 +474,25 @@ impl Topology {
     }
 }
 
-fn edge_stats(mesh: &InterfaceMesh, topo: &Topology, target: f64) -> EdgeStats {
+fn edge_stats(
+    mesh: &InterfaceMesh,
+    topo: &Topology,
+    target: f64,
+    local: Option<&dyn TargetEdges>,
+) -> EdgeStats {
     let p = &mesh.positions;
     let lengths: Vec<f64> = topo
         .edges
         .par_iter()
         .map(|&[a, b]| p[a as usize].distance(p[b as usize]))
         .collect();
+    let valid = target.is_finite() && target > 0.0;
     let n = lengths.len();
     if n == 0 {
         return EdgeStats {
-            target_mm: if target.is_finite() && target > 0.0 {
-                target
-            } else {
-                0.0
-            },
-            target_is_mean: !(target.is_finite() && target > 0.0),
+            target_mm: if valid { target } else { 0.0 },
+            target_is_mean: !valid,
+            local: local.is_some() && valid,
             ..Default::default()
         };
     }
@@ -465,17 +500,41 @@ fn edge_stats(mesh: &InterfaceMesh, topo: &Topology, target: f64) -> EdgeStats {
     let mean = sum / n as f64;
     let var = chunked_sum(&lengths, |&l| (l - mean) * (l - mean)) / n as f64;
     let std = var.max(0.0).sqrt();
-    let (l, is_mean) = if target.is_finite() && target > 0.0 {
-        (target, false)
-    } else {
-        (mean, true)
+    let (l, is_mean) = if valid { (target, false) } else { (mean, true) };
+    // the target of each edge: the local one at its midpoint, or L
+    let targets: Vec<f64> = match local.filter(|_| valid) {
+        Some(field) => topo
+            .edges
+            .par_iter()
+            .map(|&[a, b]| field.target_at(0.5 * (p[a as usize] + p[b as usize])))
+            .collect(),
+        None => vec![l; n],
     };
-    let (lo, hi) = (EDGE_RANGE_LO * l, EDGE_RANGE_HI * l);
-    let within = lengths.par_iter().filter(|&&x| x >= lo && x <= hi).count();
+    let rel: Vec<f64> = lengths
+        .iter()
+        .zip(&targets)
+        .map(|(&x, &h)| if h > 0.0 { x / h } else { 0.0 })
+        .collect();
+    let within = rel
+        .par_iter()
+        .filter(|&&r| (EDGE_RANGE_LO..=EDGE_RANGE_HI).contains(&r))
+        .count();
     let (min, max) = lengths
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
-    let rel = |x: f64| if l > 0.0 { x / l } else { 0.0 };
+    let (tmin, tmax) = targets
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+    let local_used = local.is_some() && valid;
+    let (mean_rel, std_rel) = if local_used {
+        let m = chunked_sum(&rel, |&r| r) / n as f64;
+        let v = chunked_sum(&rel, |&r| (r - m) * (r - m)) / n as f64;
+        (m, v.max(0.0).sqrt())
+    } else if l > 0.0 {
+        (mean / l, std / l)
+    } else {
+        (0.0, 0.0)
+    };
     EdgeStats {
         count: n,
         boundary: topo.edge_boundary.iter().filter(|&&b| b).count(),
@@ -485,13 +544,16 @@ fn edge_stats(mesh: &InterfaceMesh, topo: &Topology, target: f64) -> EdgeStats {
         max_mm: max,
         mean_mm: mean,
         std_mm: std,
-        mean_rel: rel(mean),
-        std_rel: rel(std),
+        mean_rel,
+        std_rel,
         within_range: if l > 0.0 {
             within as f64 / n as f64
         } else {
             0.0
         },
+        local: local_used,
+        target_min_mm: tmin,
+        target_max_mm: tmax,
     }
 }
 

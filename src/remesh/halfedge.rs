@@ -23,6 +23,10 @@ pub struct HalfedgeMesh {
     /// the operations (new vertices get `NONE` unless set).
     pub tag: Vec<u32>,
     pub locked: Vec<bool>,
+    /// Vertices whose triangles formed several fans when the mesh was built:
+    /// every copy (one per fan) is marked. An edge made at one copy could
+    /// duplicate an edge of another, which the mesh cannot see.
+    pub pinched: Vec<bool>,
     /// Caller's hint per vertex (e.g. a nearby reference triangle), carried
     /// like `tag`: a split's new vertex gets the hint of the edge's origin.
     pub hint: Vec<u32>,
@@ -65,6 +69,7 @@ impl HalfedgeMesh {
             pos,
             tag,
             locked: vec![false; nv],
+            pinched: vec![false; nv],
             hint: vec![NONE; nv],
             v_out: vec![NONE; nv],
             v_dead: vec![false; nv],
@@ -157,6 +162,7 @@ impl HalfedgeMesh {
         self.tag.push(tag);
         self.hint.push(hint);
         self.locked.push(false);
+        self.pinched.push(false);
         self.v_out.push(NONE);
         self.v_dead.push(false);
         (self.pos.len() - 1) as u32
@@ -209,6 +215,10 @@ impl HalfedgeMesh {
                 } else {
                     self.new_vertex(self.pos[v], self.tag[v], self.hint[v])
                 };
+                if bs.len() > 1 {
+                    self.pinched[v] = true;
+                    self.pinched[target as usize] = true;
+                }
                 // every outgoing halfedge of this fan now starts at `target`
                 let mut h = b;
                 loop {
@@ -701,6 +711,7 @@ impl HalfedgeMesh {
         let mut pos = Vec::new();
         let mut tag = Vec::new();
         let mut locked = Vec::new();
+        let mut pinched = Vec::new();
         let mut hint = Vec::new();
         for v in 0..self.pos.len() {
             if !self.v_dead[v] && self.v_out[v] != NONE {
@@ -708,6 +719,7 @@ impl HalfedgeMesh {
                 pos.push(self.pos[v]);
                 tag.push(self.tag[v]);
                 locked.push(self.locked[v]);
+                pinched.push(self.pinched[v]);
                 hint.push(self.hint[v]);
             }
         }
@@ -717,6 +729,8 @@ impl HalfedgeMesh {
         // fans were already split; the rebuild adds no vertices
         m.locked = locked;
         m.locked.resize(m.pos.len(), false);
+        m.pinched = pinched;
+        m.pinched.resize(m.pos.len(), false);
         m.hint = hint;
         m.hint.resize(m.pos.len(), NONE);
         // faces keep their order

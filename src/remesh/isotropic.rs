@@ -1,41 +1,55 @@
-//! Isotropic remeshing of interface patches to a target edge length L
-//! (Botsch & Kobbelt 2004), aware of the junction curves the patches share.
+//! Isotropic remeshing of one region of the interface patches to the sizing
+//! field (Botsch & Kobbelt 2004, with a target per position as in Dunyach et
+//! al. 2013), aware of the junction curves the patches share, and unable to
+//! make two triangles cross.
 //!
-//! Each iteration has two passes:
-//! 1. **Curves**, one after the other in a fixed order: curve edges longer than
-//!    4/3 L are split, shorter than 4/5 L collapsed (never a corner), and curve
-//!    vertices relaxed along the curve and projected onto its smoothed reference
-//!    polyline. Every change is applied to all patches that share the edge, so
-//!    the patches keep sharing their boundary exactly.
-//! 2. **Patches**, in parallel: with the curves frozen, interior edges are split
-//!    and collapsed, flipped toward valence 6 (4 on the boundary), and interior
-//!    vertices relaxed tangentially and projected onto the patch's smoothed
-//!    reference surface.
+//! A [`Remesher`] holds the triangles of one slab of space (see
+//! [`super::work`]): one halfedge mesh per patch, the junction-curve runs in
+//! it, and a [`Guard`] over its triangles and the fixed ones beside it.
+//! Vertices shared with triangles outside the slab are locked. One
+//! iteration ([`Remesher::iterate`]) is:
+//! 1. **Curves**, one run after the other: edges longer than 4/3 h split,
+//!    shorter than 4/5 h collapsed (never a corner), vertices relaxed along the
+//!    curve and projected onto its smoothed reference polyline; every change
+//!    applies to all patches that share the edge, so they keep sharing their
+//!    boundary exactly.
+//! 2. **Patches**, one after the other: interior edges split and collapsed,
+//!    flipped toward valence 6 (4 on the boundary), interior vertices relaxed
+//!    tangentially and projected onto the patch's smoothed reference.
 //!
-//! Every collapse, flip and move is checked first: the link condition (the
-//! patch stays a manifold), no triangle turning over (normal flip), no new edge
-//! longer than 4/3 L from a collapse, and no triangle of poor quality where the
-//! old ones were better.
+//! Every operation is checked before it is applied: the link condition (the
+//! patch stays a manifold), no triangle turning over, no new edge longer than
+//! 4/3 h from a collapse, no triangle of poor quality where the old ones were
+//! better, the new triangles follow the reference (centroid within `eps`),
+//! and the guard: they cross no triangle of any patch. What cannot be done
+//! safely is not done, here and now only; the rest of the mesh goes on.
 
 use glam::DVec3;
 use hashbrown::HashMap;
-use rayon::prelude::*;
 
+use super::guard::{Guard, Key, Tri, vertex_key};
 use super::halfedge::{HalfedgeMesh, NONE};
-use super::network::{Network, VertexKind};
+use super::network::VertexKind;
 use super::sizing::Sizing;
-use crate::error::{Error, Result};
 use crate::geom::nearest::{CurveRef, NO_TRIANGLE, SurfaceRef};
 use crate::geom::predicates::{is_degenerate, triangle_quality};
-use crate::mesh::{InterfaceMesh, JunctionCurve};
+use crate::mesh::quality::{EDGE_RANGE_HI, EDGE_RANGE_LO};
 
 /// Lowest quality a collapse, flip or move may create (unless the triangles
 /// it replaces were worse).
 const MIN_QUALITY: f64 = 0.15;
 
-pub(super) struct PatchState {
+/// Edges longer than this many targets are split.
+const SPLIT_ABOVE: f64 = EDGE_RANGE_HI;
+/// Edges shorter than this many targets are collapsed.
+const COLLAPSE_BELOW: f64 = EDGE_RANGE_LO;
+
+/// One patch's part of the region.
+pub(super) struct PatchState<'r> {
     pub(super) mesh: HalfedgeMesh,
-    pub(super) reference: SurfaceRef,
+    pub(super) reference: &'r SurfaceRef,
+    /// Per face: unchanged since the extraction.
+    pub(super) kept: Vec<bool>,
 }
 
 /// How closely new triangles must follow the reference surface.
@@ -90,75 +104,100 @@ impl Fit<'_> {
             None => false,
         }
     }
-
-    /// Whether triangle (a, b, c) fits (see [`Fit::check`]).
-    #[inline]
-    pub(super) fn ok(&self, a: DVec3, b: DVec3, c: DVec3, hint: u32) -> bool {
-        self.check(a, b, c, hint).is_some()
-    }
 }
 
-/// The remesher's state.
-pub(crate) struct Remesher {
-    /// Positions of junction vertices (global ids); interior vertices live in the patches.
+/// A junction curve (or the run of one inside the region): local vertex ids
+/// in order; the ends of an open run are fixed.
+pub(super) struct CurveRun<'r> {
+    pub(super) vertices: Vec<u32>,
+    pub(super) closed: bool,
+    pub(super) reference: &'r CurveRef,
+    /// The junction curve it is (part of): the kind of the vertices made on it.
+    pub(super) curve: u32,
+}
+
+/// The remesher of one region.
+pub(super) struct Remesher<'r> {
+    /// Positions of the region's vertices at the start, and of junction
+    /// vertices throughout (interior vertices live in the patch meshes).
     pub(super) pos: Vec<DVec3>,
     pub(super) kind: Vec<VertexKind>,
     pub(super) alive: Vec<bool>,
-    pub(super) curves: Vec<Vec<u32>>,
-    pub(super) closed: Vec<bool>,
-    pub(super) curve_labels: Vec<Vec<crate::volume::LabelId>>,
-    pub(super) curve_ref: Vec<CurveRef>,
-    pub(super) patches: Vec<PatchState>,
-    /// Local copies of each junction vertex: (patch, local vertex).
+    pub(super) curves: Vec<CurveRun<'r>>,
+    pub(super) patches: Vec<PatchState<'r>>,
+    /// Local copies of each locked vertex: (patch, local vertex).
     pub(super) copies: HashMap<u32, Vec<(u32, u32)>>,
-    pub(super) sizing: Sizing,
+    pub(super) sizing: &'r Sizing,
     /// Largest distance of a new triangle's centroid from the reference (mm).
     pub(super) eps: f64,
+    pub(super) guard: Guard,
+    made: Vec<Tri>,
+    replaced: Vec<(u32, u32)>,
 }
 
-impl Remesher {
-    /// Sets up patch meshes at the smoothed positions `smoothed`.
-    pub(crate) fn new(
-        mesh: &InterfaceMesh,
-        net: &Network,
-        smoothed: &[DVec3],
-        sizing: Sizing,
-        eps: f64,
-    ) -> Result<Self> {
-        let groups = mesh.patch_triangles();
-        let patches: Vec<PatchState> = groups
-            .par_iter()
-            .enumerate()
-            .map(|(p, tris)| build_patch(mesh, net, smoothed, p, tris))
-            .collect::<Result<_>>()?;
-        let curve_ref = net
-            .curves
-            .par_iter()
-            .map(|c| {
-                CurveRef::new(
-                    &c.vertices
-                        .iter()
-                        .map(|&v| smoothed[v as usize])
-                        .collect::<Vec<_>>(),
-                    c.closed,
-                )
+/// What [`Remesher::new`] is built from: the region's vertices (ids are
+/// positions in these arrays), its triangles by patch, and its curve runs.
+pub(super) struct Region<'r> {
+    pub(super) pos: Vec<DVec3>,
+    /// Interior vertices move; every other kind is locked (`Corner` for
+    /// vertices shared with triangles outside the region).
+    pub(super) kind: Vec<VertexKind>,
+    /// Per patch of the region: its triangles, their reference hints and
+    /// whether they are unchanged since the extraction.
+    pub(super) patches: Vec<RegionPatch<'r>>,
+    pub(super) curves: Vec<CurveRun<'r>>,
+    /// Fixed triangles beside the region (local vertex ids).
+    pub(super) obstacles: Vec<[u32; 3]>,
+    /// Operations may make triangles only within this box.
+    pub(super) trusted: (DVec3, DVec3),
+}
+
+pub(super) struct RegionPatch<'r> {
+    pub(super) reference: &'r SurfaceRef,
+    pub(super) triangles: Vec<[u32; 3]>,
+    pub(super) hints: Vec<u32>,
+    pub(super) kept: Vec<bool>,
+}
+
+impl<'r> Remesher<'r> {
+    /// Sets up the patch meshes and the guard of a region; `cell` is the
+    /// guard's cell size (mm).
+    pub(super) fn new(region: Region<'r>, sizing: &'r Sizing, eps: f64, cell: f64) -> Self {
+        let Region {
+            pos,
+            kind,
+            patches,
+            curves,
+            obstacles,
+            trusted,
+        } = region;
+        let patches: Vec<PatchState> = patches
+            .into_iter()
+            .map(|rp| build_patch(&pos, &kind, rp))
+            .collect();
+        let obstacles = obstacles
+            .iter()
+            .map(|t| Tri {
+                p: t.map(|v| pos[v as usize]),
+                k: t.map(|v| v as Key),
             })
             .collect();
+        let guard = Guard::new(cell, &patches, obstacles, trusted);
         let mut r = Remesher {
-            pos: smoothed.to_vec(),
-            kind: net.kind.clone(),
-            alive: vec![true; smoothed.len()],
-            curves: net.curves.iter().map(|c| c.vertices.clone()).collect(),
-            closed: net.curves.iter().map(|c| c.closed).collect(),
-            curve_labels: mesh.junctions.iter().map(|j| j.labels.clone()).collect(),
-            curve_ref,
+            alive: vec![true; pos.len()],
+            pos,
+            kind,
+            curves,
             patches,
             copies: HashMap::new(),
             sizing,
             eps,
+            guard,
+            made: Vec::new(),
+            replaced: Vec::new(),
         };
         r.rebuild_copies();
-        Ok(r)
+        r
     }
 
     fn rebuild_copies(&mut self) {
@@ -175,26 +214,212 @@ impl Remesher {
         }
     }
 
-    /// Runs `iterations` curve + patch passes; returns the seconds spent on
-    /// curves and on patches.
-    pub(crate) fn run(&mut self, iterations: u32) -> (f64, f64) {
-        let (mut curves, mut patches) = (0.0, 0.0);
-        for _ in 0..iterations {
-            let clock = std::time::Instant::now();
-            for c in 0..self.curves.len() {
-                self.remesh_curve(c);
-            }
-            curves += clock.elapsed().as_secs_f64();
-            let clock = std::time::Instant::now();
-            let (sizing, eps) = (&self.sizing, self.eps);
-            self.patches
-                .par_iter_mut()
-                .for_each(|st| remesh_patch(st, sizing, eps));
-            self.rebuild_copies();
-            patches += clock.elapsed().as_secs_f64();
+    /// One curve pass and one pass over every patch.
+    pub(super) fn iterate(&mut self) {
+        for c in 0..self.curves.len() {
+            self.remesh_curve(c);
         }
-        (curves, patches)
+        for p in 0..self.patches.len() {
+            self.remesh_patch(p as u32);
+        }
     }
+
+    // ---- guarded application -------------------------------------------
+
+    /// Whether the triangles in `self.made` may replace those in
+    /// `self.replaced` (the guard).
+    fn guard_clear(&mut self) -> bool {
+        self.guard.clear(&self.patches, &self.made, &self.replaced)
+    }
+
+    /// Before faces change: takes them out of the guard.
+    fn unregister(&mut self, faces: &[(u32, u32)]) {
+        for &(p, f) in faces {
+            self.guard.remove(p, f);
+        }
+    }
+
+    /// After faces changed (or were made): registers the live ones and marks
+    /// them changed.
+    fn register(&mut self, faces: &[(u32, u32)]) {
+        for &(p, f) in faces {
+            let st = &mut self.patches[p as usize];
+            if st.mesh.face_dead(f) {
+                continue;
+            }
+            if st.kept.len() <= f as usize {
+                st.kept.resize(st.mesh.face_slots(), false);
+            }
+            st.kept[f as usize] = false;
+            self.guard.insert(&st.mesh, p, f);
+        }
+    }
+
+    /// Faces of patch `p` around local vertex `v`, appended to `out`.
+    fn faces_around(m: &HalfedgeMesh, p: u32, v: u32, out: &mut Vec<(u32, u32)>) {
+        for h in m.outgoing(v) {
+            let f = m.face(h);
+            if f != NONE && !out.contains(&(p, f)) {
+                out.push((p, f));
+            }
+        }
+    }
+
+    /// The triangles around `v` in patch `p` with `v` at `at` (and key
+    /// `key`), leaving out faces holding `skip`, appended to `out`.
+    fn fan_moved(
+        m: &HalfedgeMesh,
+        p: u32,
+        v: u32,
+        at: DVec3,
+        key: Key,
+        skip: u32,
+        out: &mut Vec<Tri>,
+    ) {
+        for h in m.outgoing(v) {
+            if m.is_boundary_halfedge(h) {
+                continue;
+            }
+            let (a, b) = (m.to(h), m.to(m.next(h)));
+            if a == skip || b == skip {
+                continue;
+            }
+            out.push(Tri {
+                p: [at, m.pos[a as usize], m.pos[b as usize]],
+                k: [key, vertex_key(m, p, a), vertex_key(m, p, b)],
+            });
+        }
+    }
+
+    /// Moves interior vertex `v` of patch `p` to `at`, if the guard allows it
+    /// (the local checks are the caller's).
+    fn guarded_move(&mut self, p: u32, v: u32, at: DVec3) -> bool {
+        let mut made = std::mem::take(&mut self.made);
+        let mut replaced = std::mem::take(&mut self.replaced);
+        made.clear();
+        replaced.clear();
+        let m = &self.patches[p as usize].mesh;
+        Self::fan_moved(m, p, v, at, vertex_key(m, p, v), NONE, &mut made);
+        Self::faces_around(m, p, v, &mut replaced);
+        self.made = made;
+        self.replaced = replaced;
+        if !self.guard_clear() {
+            return false;
+        }
+        let replaced = std::mem::take(&mut self.replaced);
+        self.unregister(&replaced);
+        self.patches[p as usize].mesh.pos[v as usize] = at;
+        self.register(&replaced);
+        self.replaced = replaced;
+        true
+    }
+
+    /// Collapses halfedge `h` of patch `p` (its from-vertex merges into its
+    /// to-vertex, which moves to `at`), if the guard allows it.
+    fn guarded_collapse(&mut self, p: u32, h: u32, at: DVec3) -> bool {
+        let mut made = std::mem::take(&mut self.made);
+        let mut replaced = std::mem::take(&mut self.replaced);
+        made.clear();
+        replaced.clear();
+        let m = &self.patches[p as usize].mesh;
+        let (v0, v1) = (m.from(h), m.to(h));
+        let k1 = vertex_key(m, p, v1);
+        Self::fan_moved(m, p, v0, at, k1, v1, &mut made);
+        if at != m.pos[v1 as usize] {
+            Self::fan_moved(m, p, v1, at, k1, v0, &mut made);
+        }
+        Self::faces_around(m, p, v0, &mut replaced);
+        Self::faces_around(m, p, v1, &mut replaced);
+        self.made = made;
+        self.replaced = replaced;
+        if !self.guard_clear() {
+            return false;
+        }
+        let replaced = std::mem::take(&mut self.replaced);
+        self.unregister(&replaced);
+        let m = &mut self.patches[p as usize].mesh;
+        m.pos[v1 as usize] = at;
+        m.collapse(h);
+        self.register(&replaced);
+        self.replaced = replaced;
+        true
+    }
+
+    /// Flips the edge of `h` in patch `p`, if the guard allows it.
+    fn guarded_flip(&mut self, p: u32, h: u32) -> bool {
+        let mut made = std::mem::take(&mut self.made);
+        made.clear();
+        let m = &self.patches[p as usize].mesh;
+        let (a, b) = (m.from(h), m.to(h));
+        let (c, d) = (m.to(m.next(h)), m.to(m.next(h ^ 1)));
+        let tri = |x: u32, y: u32, z: u32| Tri {
+            p: [x, y, z].map(|v| m.pos[v as usize]),
+            k: [x, y, z].map(|v| vertex_key(m, p, v)),
+        };
+        made.push(tri(d, c, a));
+        made.push(tri(c, d, b));
+        let faces = [(p, m.face(h)), (p, m.face(h ^ 1))];
+        self.made = made;
+        self.replaced.clear();
+        self.replaced.extend_from_slice(&faces);
+        if !self.guard_clear() {
+            return false;
+        }
+        self.unregister(&faces);
+        self.patches[p as usize].mesh.flip(h);
+        self.register(&faces);
+        true
+    }
+
+    /// Splits the edge of `h` in patch `p` at `at` (its midpoint: the
+    /// triangles keep their shape), if the guard allows it; returns the new
+    /// vertex.
+    fn guarded_split(&mut self, p: u32, h: u32, at: DVec3) -> Option<u32> {
+        let mut made = std::mem::take(&mut self.made);
+        made.clear();
+        let m = &self.patches[p as usize].mesh;
+        let new_key = vertex_key_of_next(m, p);
+        let mut faces = [(p, NONE); 2];
+        for (i, g) in [h, h ^ 1].into_iter().enumerate() {
+            if m.is_boundary_halfedge(g) {
+                continue;
+            }
+            let (a, b, c) = (m.from(g), m.to(g), m.to(m.next(g)));
+            let (pa, pb, pc) = (m.pos[a as usize], m.pos[b as usize], m.pos[c as usize]);
+            let (ka, kb, kc) = (
+                vertex_key(m, p, a),
+                vertex_key(m, p, b),
+                vertex_key(m, p, c),
+            );
+            made.push(Tri {
+                p: [pa, at, pc],
+                k: [ka, new_key, kc],
+            });
+            made.push(Tri {
+                p: [at, pb, pc],
+                k: [new_key, kb, kc],
+            });
+            faces[i] = (p, m.face(g));
+        }
+        self.made = made;
+        self.replaced.clear();
+        self.replaced.extend(faces.iter().filter(|f| f.1 != NONE));
+        if !self.guard_clear() {
+            return None;
+        }
+        let old: Vec<(u32, u32)> = self.replaced.clone();
+        self.unregister(&old);
+        let m = &mut self.patches[p as usize].mesh;
+        let before = m.face_slots() as u32;
+        let v = m.split(h, at);
+        let after = m.face_slots() as u32;
+        let mut changed = old;
+        changed.extend((before..after).map(|f| (p, f)));
+        self.register(&changed);
+        Some(v)
+    }
+
+    // ---- curves ----------------------------------------------------------
 
     /// The boundary halfedge from local copy of `u` to a local copy of `v` in each patch.
     fn curve_edge(&self, u: u32, v: u32) -> Vec<(u32, u32)> {
@@ -217,8 +442,9 @@ impl Remesher {
         while i < self.curve_edges(c) {
             let (u, v) = self.curve_edge_at(c, i);
             let (pu, pv) = (self.pos[u as usize], self.pos[v as usize]);
-            if (pu - pv).length() > 4.0 / 3.0 * self.sizing.edge(pu, pv) {
-                self.split_curve_edge(c, i);
+            if (pu - pv).length() > SPLIT_ABOVE * self.sizing.edge(pu, pv)
+                && self.split_curve_edge(c, i)
+            {
                 i += 2;
             } else {
                 i += 1;
@@ -230,7 +456,9 @@ impl Remesher {
             let (u, v) = self.curve_edge_at(c, i);
             let (pu, pv) = (self.pos[u as usize], self.pos[v as usize]);
             let len = (pu - pv).length();
-            if len < 4.0 / 5.0 * self.sizing.edge(pu, pv) && self.try_curve_collapse(c, i, u, v) {
+            if len < COLLAPSE_BELOW * self.sizing.edge(pu, pv)
+                && self.try_curve_collapse(c, i, u, v)
+            {
                 continue;
             }
             i += 1;
@@ -238,37 +466,83 @@ impl Remesher {
         self.relax_curve(c);
     }
 
-    /// Splits edge `i` of curve `c` at its midpoint projected onto the
-    /// reference curve (where every patch allows the move), in every patch
-    /// that shares it.
-    fn split_curve_edge(&mut self, c: usize, i: usize) {
-        let m = self.split_curve_edge_at_chord(c, i);
-        let onto = self.curve_ref[c].project(self.pos[m as usize]);
+    /// Splits edge `i` of curve `c` at its midpoint, then moves the new vertex
+    /// onto the reference curve where every patch allows it.
+    fn split_curve_edge(&mut self, c: usize, i: usize) -> bool {
+        let Some(m) = self.split_curve_edge_at_chord(c, i) else {
+            return false;
+        };
+        let onto = self.curves[c].reference.project(self.pos[m as usize]);
         self.move_curve_vertex(m, onto);
+        true
     }
 
     /// Splits edge `i` of curve `c` at its chord midpoint (no triangle changes
-    /// shape) in every patch that shares it; returns the new junction vertex.
-    fn split_curve_edge_at_chord(&mut self, c: usize, i: usize) -> u32 {
+    /// shape) in every patch that shares it, if the guard allows it; returns
+    /// the new junction vertex.
+    fn split_curve_edge_at_chord(&mut self, c: usize, i: usize) -> Option<u32> {
         let (u, v) = self.curve_edge_at(c, i);
         let mid = (self.pos[u as usize] + self.pos[v as usize]) * 0.5;
         let sites = self.curve_edge(u, v);
-        let m = self.pos.len() as u32;
+        if sites.is_empty() {
+            return None;
+        }
+        let new = self.pos.len() as u32;
+        let mut made = std::mem::take(&mut self.made);
+        made.clear();
+        self.replaced.clear();
+        for &(p, h) in &sites {
+            let m = &self.patches[p as usize].mesh;
+            // the face on the patch's side of the boundary edge
+            let g = if m.is_boundary_halfedge(h) { h ^ 1 } else { h };
+            let (a, b, w) = (m.from(g), m.to(g), m.to(m.next(g)));
+            let (pa, pb, pw) = (m.pos[a as usize], m.pos[b as usize], m.pos[w as usize]);
+            let (ka, kb, kw) = (
+                vertex_key(m, p, a),
+                vertex_key(m, p, b),
+                vertex_key(m, p, w),
+            );
+            made.push(Tri {
+                p: [pa, mid, pw],
+                k: [ka, new as Key, kw],
+            });
+            made.push(Tri {
+                p: [mid, pb, pw],
+                k: [new as Key, kb, kw],
+            });
+            self.replaced.push((p, m.face(g)));
+        }
+        self.made = made;
+        if !self.guard_clear() {
+            return None;
+        }
+        let old = self.replaced.clone();
+        self.unregister(&old);
         self.pos.push(mid);
-        self.kind.push(VertexKind::Curve(c as u32));
+        self.kind.push(self.kind_of_new_curve_vertex(c));
         self.alive.push(true);
+        let mut changed = old;
         for (p, h) in sites {
             let mesh = &mut self.patches[p as usize].mesh;
+            let before = mesh.face_slots() as u32;
             let lm = mesh.split(h, mid);
-            mesh.tag[lm as usize] = m;
+            mesh.tag[lm as usize] = new;
             mesh.locked[lm as usize] = true;
-            self.copies.entry(m).or_default().push((p, lm));
+            changed.extend((before..mesh.face_slots() as u32).map(|f| (p, f)));
+            self.copies.entry(new).or_default().push((p, lm));
         }
-        self.curves[c].insert(i + 1, m);
-        m
+        self.register(&changed);
+        self.curves[c].vertices.insert(i + 1, new);
+        Some(new)
     }
 
-    /// Moves junction vertex `v` to `p` in every patch, if every patch allows it.
+    /// The kind of a vertex made on curve run `c`.
+    fn kind_of_new_curve_vertex(&self, c: usize) -> VertexKind {
+        VertexKind::Curve(self.curves[c].curve)
+    }
+
+    /// Moves junction vertex `v` to `p` in every patch, if every patch and the
+    /// guard allow it.
     fn move_curve_vertex(&mut self, v: u32, p: DVec3) -> bool {
         let copies = self.copies.get(&v).cloned().unwrap_or_default();
         let ok = copies.iter().all(|&(pi, lv)| {
@@ -278,23 +552,39 @@ impl Remesher {
                 lv,
                 p,
                 Fit {
-                    reference: &st.reference,
+                    reference: st.reference,
                     eps: self.eps,
                 },
             )
         });
-        if ok {
-            self.pos[v as usize] = p;
-            for (pi, lv) in copies {
-                self.patches[pi as usize].mesh.pos[lv as usize] = p;
-            }
+        if !ok {
+            return false;
         }
-        ok
+        let mut made = std::mem::take(&mut self.made);
+        made.clear();
+        self.replaced.clear();
+        for &(pi, lv) in &copies {
+            let m = &self.patches[pi as usize].mesh;
+            Self::fan_moved(m, pi, lv, p, v as Key, NONE, &mut made);
+            Self::faces_around(m, pi, lv, &mut self.replaced);
+        }
+        self.made = made;
+        if !self.guard_clear() {
+            return false;
+        }
+        let faces = self.replaced.clone();
+        self.unregister(&faces);
+        self.pos[v as usize] = p;
+        for (pi, lv) in copies {
+            self.patches[pi as usize].mesh.pos[lv as usize] = p;
+        }
+        self.register(&faces);
+        true
     }
 
     fn curve_edges(&self, c: usize) -> usize {
-        let n = self.curves[c].len();
-        if self.closed[c] {
+        let n = self.curves[c].vertices.len();
+        if self.curves[c].closed {
             if n > 2 { n } else { 0 }
         } else {
             n.saturating_sub(1)
@@ -302,31 +592,35 @@ impl Remesher {
     }
 
     fn curve_edge_at(&self, c: usize, i: usize) -> (u32, u32) {
-        let cv = &self.curves[c];
+        let cv = &self.curves[c].vertices;
         (cv[i], cv[(i + 1) % cv.len()])
     }
 
-    /// Collapses curve edge i (u, v) by removing a non-corner end; false if not allowed.
+    fn movable_on_curve(&self, v: u32) -> bool {
+        matches!(self.kind[v as usize], VertexKind::Curve(_))
+    }
+
+    /// Collapses curve edge i (u, v) by removing a movable end; false if not allowed.
     fn try_curve_collapse(&mut self, c: usize, i: usize, u: u32, v: u32) -> bool {
-        if self.closed[c] && self.curves[c].len() <= 3 {
+        if self.curves[c].closed && self.curves[c].vertices.len() <= 3 {
             return false;
         }
-        let n = self.curves[c].len();
-        let (remove, keep, idx) = if self.kind[u as usize] != VertexKind::Corner {
+        let n = self.curves[c].vertices.len();
+        let (remove, keep, idx) = if self.movable_on_curve(u) {
             (u, v, i)
-        } else if self.kind[v as usize] != VertexKind::Corner {
+        } else if self.movable_on_curve(v) {
             (v, u, (i + 1) % n)
         } else {
             return false;
         };
-        // the other curve neighbour of `remove` must stay within 4/3 L of `keep`
+        // the other curve neighbour of `remove` must stay within 4/3 h of `keep`
         let other = if remove == u {
-            self.curves[c][(i + n - 1) % n]
+            self.curves[c].vertices[(i + n - 1) % n]
         } else {
-            self.curves[c][(i + 2) % n]
+            self.curves[c].vertices[(i + 2) % n]
         };
         let (po, pk) = (self.pos[other as usize], self.pos[keep as usize]);
-        if (po - pk).length() > 4.0 / 3.0 * self.sizing.edge(po, pk) {
+        if (po - pk).length() > SPLIT_ABOVE * self.sizing.edge(po, pk) {
             return false;
         }
         let sites = self.curve_edge(remove, keep);
@@ -338,7 +632,7 @@ impl Remesher {
         let ok = sites.iter().all(|&(p, h)| {
             let st = &self.patches[p as usize];
             let fit = Fit {
-                reference: &st.reference,
+                reference: st.reference,
                 eps: self.eps,
             };
             st.mesh.is_collapse_ok(h)
@@ -347,35 +641,53 @@ impl Remesher {
         if !ok {
             return false;
         }
+        let mut made = std::mem::take(&mut self.made);
+        made.clear();
+        self.replaced.clear();
+        for &(p, h) in &sites {
+            let m = &self.patches[p as usize].mesh;
+            let (v0, v1) = (m.from(h), m.to(h));
+            Self::fan_moved(m, p, v0, target_pos, keep as Key, v1, &mut made);
+            Self::faces_around(m, p, v0, &mut self.replaced);
+        }
+        self.made = made;
+        if !self.guard_clear() {
+            return false;
+        }
+        let faces = self.replaced.clone();
+        self.unregister(&faces);
         for (p, h) in sites {
             self.patches[p as usize].mesh.collapse(h);
         }
+        self.register(&faces);
         self.copies.remove(&remove);
         self.alive[remove as usize] = false;
-        self.curves[c].remove(idx);
+        self.curves[c].vertices.remove(idx);
         true
     }
 
     /// Moves curve vertices toward the middle of their curve neighbours, on the
-    /// reference curve, where no triangle turns over.
+    /// reference curve, where no triangle turns over and the guard allows it.
     fn relax_curve(&mut self, c: usize) {
-        let n = self.curves[c].len();
+        let n = self.curves[c].vertices.len();
         if n < 3 {
             return;
         }
-        let closed = self.closed[c];
+        let closed = self.curves[c].closed;
         let targets: Vec<(u32, DVec3)> = (0..n)
             .filter(|&i| closed || (i > 0 && i + 1 < n))
             .filter_map(|i| {
-                let v = self.curves[c][i];
-                if self.kind[v as usize] == VertexKind::Corner {
+                let cv = &self.curves[c].vertices;
+                let v = cv[i];
+                if !self.movable_on_curve(v) {
                     return None;
                 }
-                let (a, b) = (self.curves[c][(i + n - 1) % n], self.curves[c][(i + 1) % n]);
+                let (a, b) = (cv[(i + n - 1) % n], cv[(i + 1) % n]);
                 let mid = (self.pos[a as usize] + self.pos[b as usize]) * 0.5;
                 Some((
                     v,
-                    self.curve_ref[c]
+                    self.curves[c]
+                        .reference
                         .project(self.pos[v as usize] + (mid - self.pos[v as usize]) * 0.5),
                 ))
             })
@@ -385,165 +697,284 @@ impl Remesher {
         }
     }
 
-    /// The current triangles over global vertex ids, with the (patch, face)
-    /// each comes from.
-    pub(super) fn snapshot(&self) -> Snapshot {
-        // junction vertices keep a global numbering; interior ones follow per patch
-        let mut new_id = vec![NONE; self.pos.len()];
-        let mut positions = Vec::new();
-        for (v, &alive) in self.alive.iter().enumerate() {
-            if alive && self.copies.contains_key(&(v as u32)) {
-                new_id[v] = positions.len() as u32;
-                positions.push(self.pos[v]);
+    // ---- patches -----------------------------------------------------------
+
+    /// One B&K iteration on the interior of patch `p` (curves frozen).
+    fn remesh_patch(&mut self, p: u32) {
+        self.split_long_edges(p);
+        self.collapse_short_edges(p);
+        self.equalize_valences(p);
+        self.relax_and_project(p);
+    }
+
+    fn fit(&self, p: u32) -> Fit<'r> {
+        Fit {
+            reference: self.patches[p as usize].reference,
+            eps: self.eps,
+        }
+    }
+
+    fn split_long_edges(&mut self, p: u32) {
+        let edges: Vec<u32> = self.patches[p as usize].mesh.edges().collect();
+        for h in edges {
+            let m = &self.patches[p as usize].mesh;
+            if m.is_boundary_edge(h) {
+                continue;
+            }
+            let (a, b) = (m.pos[m.from(h) as usize], m.pos[m.to(h) as usize]);
+            let mid = (a + b) * 0.5;
+            if (a - b).length() > SPLIT_ABOVE * self.sizing.at(mid) {
+                self.guarded_split(p, h, mid);
             }
         }
+    }
+
+    fn collapse_short_edges(&mut self, p: u32) {
+        let fit = self.fit(p);
+        let edges: Vec<u32> = self.patches[p as usize].mesh.edges().collect();
+        'edges: for e in edges {
+            let m = &self.patches[p as usize].mesh;
+            if m.edge_dead(e) {
+                continue;
+            }
+            let target = self
+                .sizing
+                .edge(m.pos[m.from(e) as usize], m.pos[m.to(e) as usize]);
+            let (lo, hi) = (COLLAPSE_BELOW * target, SPLIT_ABOVE * target);
+            if m.edge_length(e) >= lo {
+                continue;
+            }
+            for h in [e, e ^ 1] {
+                let m = &self.patches[p as usize].mesh;
+                let v0 = m.from(h);
+                if m.locked[v0 as usize] || m.is_boundary_vertex(v0) {
+                    continue;
+                }
+                let at = m.pos[m.to(h) as usize];
+                if m.is_collapse_ok(h)
+                    && collapse_geometry_ok(m, h, at, hi, fit)
+                    && self.guarded_collapse(p, h, at)
+                {
+                    continue 'edges;
+                }
+            }
+            // both ends free: try merging them at the midpoint, on the reference
+            let m = &self.patches[p as usize].mesh;
+            let (v0, v1) = (m.from(e), m.to(e));
+            if m.locked[v0 as usize]
+                || m.locked[v1 as usize]
+                || m.is_boundary_vertex(v0)
+                || m.is_boundary_vertex(v1)
+                || !m.is_collapse_ok(e)
+            {
+                continue;
+            }
+            let (at, near) = fit.reference.project_from(
+                (m.pos[v0 as usize] + m.pos[v1 as usize]) * 0.5,
+                m.hint[v1 as usize],
+            );
+            if collapse_geometry_ok(m, e, at, hi, fit)
+                && collapse_geometry_ok(m, e ^ 1, at, hi, fit)
+                && self.guarded_collapse(p, e, at)
+            {
+                self.patches[p as usize].mesh.hint[v1 as usize] = near;
+            }
+        }
+    }
+
+    fn equalize_valences(&mut self, p: u32) {
+        let fit = self.fit(p);
+        let edges: Vec<u32> = self.patches[p as usize].mesh.edges().collect();
+        for h in edges {
+            let m = &self.patches[p as usize].mesh;
+            if m.edge_dead(h) || m.is_boundary_edge(h) || !m.is_flip_ok(h) {
+                continue;
+            }
+            let (a, b) = (m.from(h), m.to(h));
+            let (c, d) = (m.to(m.next(h)), m.to(m.next(h ^ 1)));
+            if (m.locked[c as usize] && m.locked[d as usize])
+                || m.pinched[c as usize]
+                || m.pinched[d as usize]
+            {
+                continue; // see collapse_geometry_ok: no new edge between junction vertices, none at a pinch
+            }
+            let dev =
+                |v: u32, delta: i32| (m.valence(v) as i32 + delta - target_valence(m, v)).abs();
+            let before = dev(a, 0) + dev(b, 0) + dev(c, 0) + dev(d, 0);
+            let after = dev(a, -1) + dev(b, -1) + dev(c, 1) + dev(d, 1);
+            if after < before && flip_geometry_ok(m, a, b, c, d, fit) {
+                self.guarded_flip(p, h);
+            }
+        }
+    }
+
+    /// Tangential relaxation toward the centroid of the one-ring, then
+    /// projection onto the reference; moves that would turn a triangle over,
+    /// or that the guard refuses, are skipped.
+    fn relax_and_project(&mut self, p: u32) {
+        let fit = self.fit(p);
+        let m = &self.patches[p as usize].mesh;
+        let moves: Vec<(u32, DVec3, u32)> = m
+            .vertices()
+            .filter(|&v| !m.locked[v as usize] && !m.is_boundary_vertex(v))
+            .map(|v| {
+                let at = m.pos[v as usize];
+                let mut centroid = DVec3::ZERO;
+                let mut normal = DVec3::ZERO;
+                let mut k = 0.0;
+                for h in m.outgoing(v) {
+                    centroid += m.pos[m.to(h) as usize];
+                    k += 1.0;
+                    if !m.is_boundary_halfedge(h) {
+                        normal += m.face_normal(m.face(h));
+                    }
+                }
+                let n = normal.normalize_or_zero();
+                let d = centroid / k - at;
+                let (onto, near) = fit
+                    .reference
+                    .project_from(at + d - n * d.dot(n), m.hint[v as usize]);
+                (v, onto, near)
+            })
+            .collect();
+        for (v, to, near) in moves {
+            let m = &mut self.patches[p as usize].mesh;
+            // the triangle under the new position starts the fit walks
+            let old_hint = std::mem::replace(&mut m.hint[v as usize], near);
+            if !(move_ok(m, v, to, fit) && self.guarded_move(p, v, to)) {
+                self.patches[p as usize].mesh.hint[v as usize] = old_hint;
+            }
+        }
+    }
+
+    // ---- result --------------------------------------------------------------
+
+    /// The region after remeshing: every live face of every patch, over the
+    /// region's vertex ids (vertices made here get ids from `pos.len()` at
+    /// the start on; interior ones made by splits get ids after those).
+    pub(super) fn finish(self) -> RegionResult {
+        let mut pos = self.pos;
+        let mut kind = self.kind;
+        let mut alive = self.alive;
         let mut triangles = Vec::new();
-        let mut origin = Vec::new();
-        let mut local_ids = Vec::with_capacity(self.patches.len());
-        let mut face_index = Vec::with_capacity(self.patches.len());
         for (p, st) in self.patches.iter().enumerate() {
             let m = &st.mesh;
             let mut local = vec![NONE; m.vertex_slots()];
             for v in m.vertices() {
-                local[v as usize] = if m.locked[v as usize] {
-                    new_id[m.tag[v as usize] as usize]
+                let tag = m.tag[v as usize];
+                local[v as usize] = if tag != NONE {
+                    if !m.locked[v as usize] {
+                        pos[tag as usize] = m.pos[v as usize];
+                    }
+                    tag
                 } else {
-                    positions.push(m.pos[v as usize]);
-                    (positions.len() - 1) as u32
+                    pos.push(m.pos[v as usize]);
+                    kind.push(VertexKind::Interior);
+                    alive.push(true);
+                    (pos.len() - 1) as u32
                 };
             }
-            let mut faces = vec![NONE; m.face_slots()];
             for f in 0..m.face_slots() as u32 {
                 if m.face_dead(f) {
                     continue;
                 }
-                faces[f as usize] = triangles.len() as u32;
-                triangles.push(m.face_vertices(f).map(|v| local[v as usize]));
-                origin.push((p as u32, f));
+                triangles.push(ResultTriangle {
+                    vertices: m.face_vertices(f).map(|v| local[v as usize]),
+                    patch: p as u32,
+                    hint: m.face_hint[f as usize].get(),
+                    kept: st.kept.get(f as usize).copied().unwrap_or(false),
+                });
             }
-            local_ids.push(local);
-            face_index.push(faces);
         }
-        Snapshot {
-            positions,
-            triangles,
-            origin,
-            new_id,
-            local_ids,
-            face_index,
+        // interior vertices that a collapse removed
+        for st in &self.patches {
+            let m = &st.mesh;
+            for v in 0..m.vertex_slots() as u32 {
+                let tag = m.tag[v as usize];
+                if m.vertex_dead(v) && tag != NONE && !m.locked[v as usize] {
+                    alive[tag as usize] = false;
+                }
+            }
         }
-    }
-
-    /// The remeshed interface mesh (patches and labels of `like`).
-    pub(crate) fn into_mesh(self, like: &InterfaceMesh) -> InterfaceMesh {
-        let Snapshot {
-            positions,
+        RegionResult {
+            pos,
+            kind,
+            alive,
             triangles,
-            origin,
-            new_id,
-            ..
-        } = self.snapshot();
-        let triangle_patch = origin.iter().map(|o| o.0).collect();
-        let junctions = self
-            .curves
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| c.len() >= 2)
-            .map(|(i, c)| JunctionCurve {
-                vertices: c.iter().map(|&v| new_id[v as usize]).collect(),
-                closed: self.closed[i],
-                labels: self.curve_labels[i].clone(),
-            })
-            .collect();
-        InterfaceMesh {
-            positions,
-            triangles,
-            triangle_patch,
-            patches: like.patches.clone(),
-            junctions,
-            labels: like.labels.clone(),
-            geometry: like.geometry,
+            curves: self.curves.into_iter().map(|c| c.vertices).collect(),
         }
     }
 }
 
-pub(super) struct Snapshot {
-    pub(super) positions: Vec<DVec3>,
-    pub(super) triangles: Vec<[u32; 3]>,
-    pub(super) origin: Vec<(u32, u32)>,
-    pub(super) new_id: Vec<u32>,
-    /// Per patch: snapshot vertex id of each local vertex.
-    pub(super) local_ids: Vec<Vec<u32>>,
-    /// Per patch: snapshot triangle of each face (`NONE` if dead).
-    pub(super) face_index: Vec<Vec<u32>>,
+/// A triangle of a [`RegionResult`].
+pub(super) struct ResultTriangle {
+    pub(super) vertices: [u32; 3],
+    /// The region's patch index.
+    pub(super) patch: u32,
+    pub(super) hint: u32,
+    pub(super) kept: bool,
 }
 
-fn build_patch(
-    mesh: &InterfaceMesh,
-    net: &Network,
-    smoothed: &[DVec3],
-    p: usize,
-    tris: &[u32],
-) -> Result<PatchState> {
-    // local ids in order of first use (a flat map: a few MB, cheaper than hashing)
-    let mut local_of = vec![NONE; mesh.positions.len()];
-    let mut pos = Vec::new();
+/// A remeshed region (see [`Remesher::finish`]).
+pub(super) struct RegionResult {
+    /// Positions of every region vertex (then of the vertices made).
+    pub(super) pos: Vec<DVec3>,
+    pub(super) kind: Vec<VertexKind>,
+    pub(super) alive: Vec<bool>,
+    pub(super) triangles: Vec<ResultTriangle>,
+    /// The curve runs, in the order given, with their vertices now.
+    pub(super) curves: Vec<Vec<u32>>,
+}
+
+/// The key the next vertex a split makes in patch `p` will have.
+fn vertex_key_of_next(m: &HalfedgeMesh, p: u32) -> Key {
+    // (splits make vertices without a tag: local keys)
+    (1 << 63) | ((p as Key) << 32) | m.vertex_slots() as Key
+}
+
+fn build_patch<'r>(pos: &[DVec3], kind: &[VertexKind], rp: RegionPatch<'r>) -> PatchState<'r> {
+    // local ids in order of first use (a map: regions are a part of the mesh)
+    let mut local_of: HashMap<u32, u32> = HashMap::with_capacity(rp.triangles.len());
+    let mut lpos = Vec::new();
     let mut tag = Vec::new();
-    let mut local_tris = Vec::with_capacity(tris.len());
-    let mut ref_tris = Vec::with_capacity(tris.len());
-    for &t in tris {
-        let tri = mesh.triangles[t as usize];
-        ref_tris.push(tri.map(|v| smoothed[v as usize]));
-        local_tris.push(tri.map(|v| {
-            if local_of[v as usize] == NONE {
-                local_of[v as usize] = pos.len() as u32;
-                pos.push(smoothed[v as usize]);
-                tag.push(v);
-            }
-            local_of[v as usize]
-        }));
-    }
-    let mut m = HalfedgeMesh::from_triangles(pos, tag, &local_tris).map_err(|e| {
-        let [a, b] = mesh.patches[p].labels;
-        Error::invalid(format!(
-            "patch {} | {} is not a manifold ({e:?}); remeshing needs valid patches (run `septa check`)",
-            mesh.label_name(a),
-            mesh.label_name(b)
-        ))
-    })?;
+    let local_tris: Vec<[u32; 3]> = rp
+        .triangles
+        .iter()
+        .map(|t| {
+            t.map(|v| {
+                *local_of.entry(v).or_insert_with(|| {
+                    lpos.push(pos[v as usize]);
+                    tag.push(v);
+                    (lpos.len() - 1) as u32
+                })
+            })
+        })
+        .collect();
+    let mut m = HalfedgeMesh::from_triangles(lpos, tag, &local_tris)
+        .expect("patches of a valid interface mesh are manifolds");
     for v in 0..m.vertex_slots() {
-        // islands are locked like junction vertices: nothing moves them
-        m.locked[v] = net.on_junction(m.tag[v])
-            || matches!(
-                net.kind[m.tag[v] as usize],
-                VertexKind::Island | VertexKind::Kept
-            );
+        m.locked[v] = kind[m.tag[v] as usize] != VertexKind::Interior;
     }
-    // Faces are numbered like the reference triangles (the mesh is what the
-    // reference was made of): the neighbours across edges come from the
-    // halfedges, and every vertex starts with one of its own triangles as hint.
-    let mut adjacent = vec![[NO_TRIANGLE; 3]; ref_tris.len()];
-    for (f, row) in adjacent.iter_mut().enumerate() {
-        let mut h = m.face_halfedge(f as u32);
-        for slot in row.iter_mut() {
-            let across = m.face(h ^ 1);
-            if across != NONE {
-                *slot = across;
+    // every vertex starts with the hint of one of its faces
+    for (f, &hint) in rp.hints.iter().enumerate() {
+        m.face_hint[f].set(hint);
+        let h = m.face_halfedge(f as u32);
+        for g in [h, m.next(h), m.prev(h)] {
+            let from = m.from(g) as usize;
+            if m.hint[from] == NONE {
+                m.hint[from] = hint;
             }
-            let from = m.from(h) as usize;
-            m.hint[from] = f as u32;
-            m.face_hint[f].set(f as u32);
-            h = m.next(h);
         }
     }
-    Ok(PatchState {
+    PatchState {
         mesh: m,
-        reference: SurfaceRef::with_adjacency(ref_tris, adjacent),
-    })
+        reference: rp.reference,
+        kept: rp.kept,
+    }
 }
 
 /// Whether moving vertex `v` to `p` keeps every incident triangle facing the
-/// same way and of acceptable quality.
+/// same way, of acceptable quality, and following the reference.
 pub(super) fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3, fit: Fit) -> bool {
     let mut hint = m.hint[v as usize];
     for h in m.outgoing(v) {
@@ -571,8 +1002,8 @@ pub(super) fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3, fit: Fit) -> bool {
 }
 
 /// Whether collapsing `h` (from(h) moves to `p`, then merges into to(h)) keeps
-/// the triangles facing the same way, of acceptable quality, and its new edges
-/// no longer than `max_edge`.
+/// the triangles facing the same way, of acceptable quality, following the
+/// reference, and its new edges no longer than `max_edge`.
 pub(super) fn collapse_geometry_ok(
     m: &HalfedgeMesh,
     h: u32,
@@ -581,6 +1012,27 @@ pub(super) fn collapse_geometry_ok(
     fit: Fit,
 ) -> bool {
     let (v0, v1) = (m.from(h), m.to(h));
+    // a pinched vertex's other copies are out of sight: the new edges at it
+    // could duplicate theirs
+    if m.pinched[v1 as usize] || m.pinched[v0 as usize] {
+        return false;
+    }
+    // the link condition by identity: a copy of a pinched vertex next to v0
+    // and another next to v1 would become one edge twice
+    if m.outgoing(v0).any(|g| m.pinched[m.to(g) as usize]) {
+        for g in m.outgoing(v0) {
+            let w0 = m.to(g);
+            if !m.pinched[w0 as usize] {
+                continue;
+            }
+            if m.outgoing(v1).any(|k| {
+                let w1 = m.to(k);
+                w1 != w0 && m.tag[w1 as usize] == m.tag[w0 as usize]
+            }) {
+                return false;
+            }
+        }
+    }
     // the triangles that stay, as (w, b) with the new triangle (p, w, b)
     let kept = |g: u32| {
         let w = m.to(g);
@@ -655,98 +1107,8 @@ pub(super) fn collapse_geometry_ok(
     true
 }
 
-/// One B&K iteration on the interior of a patch (curves frozen).
-fn remesh_patch(st: &mut PatchState, sizing: &Sizing, eps: f64) {
-    let fit = Fit {
-        reference: &st.reference,
-        eps,
-    };
-    split_long_edges(&mut st.mesh, sizing);
-    collapse_short_edges(&mut st.mesh, sizing, fit);
-    st.mesh.collect_garbage();
-    equalize_valences(&mut st.mesh, fit);
-    relax_and_project(&mut st.mesh, fit);
-}
-
-fn split_long_edges(m: &mut HalfedgeMesh, sizing: &Sizing) {
-    let edges: Vec<u32> = m.edges().collect();
-    for h in edges {
-        if m.is_boundary_edge(h) {
-            continue;
-        }
-        let p = (m.pos[m.from(h) as usize] + m.pos[m.to(h) as usize]) * 0.5;
-        if m.edge_length(h) > 4.0 / 3.0 * sizing.at(p) {
-            m.split(h, p);
-        }
-    }
-}
-
-fn collapse_short_edges(m: &mut HalfedgeMesh, sizing: &Sizing, fit: Fit) {
-    let edges: Vec<u32> = m.edges().collect();
-    'edges: for e in edges {
-        if m.edge_dead(e) {
-            continue;
-        }
-        let target = sizing.edge(m.pos[m.from(e) as usize], m.pos[m.to(e) as usize]);
-        let (lo, hi) = (4.0 / 5.0 * target, 4.0 / 3.0 * target);
-        if m.edge_length(e) >= lo {
-            continue;
-        }
-        for h in [e, e ^ 1] {
-            let v0 = m.from(h);
-            if m.locked[v0 as usize] || m.is_boundary_vertex(v0) {
-                continue;
-            }
-            let p = m.pos[m.to(h) as usize];
-            if m.is_collapse_ok(h) && collapse_geometry_ok(m, h, p, hi, fit) {
-                m.collapse(h);
-                continue 'edges;
-            }
-        }
-        // both ends free: try merging them at the midpoint, on the reference
-        let (v0, v1) = (m.from(e), m.to(e));
-        if m.locked[v0 as usize]
-            || m.locked[v1 as usize]
-            || m.is_boundary_vertex(v0)
-            || m.is_boundary_vertex(v1)
-            || !m.is_collapse_ok(e)
-        {
-            continue;
-        }
-        let (p, near) = fit.reference.project_from(
-            (m.pos[v0 as usize] + m.pos[v1 as usize]) * 0.5,
-            m.hint[v1 as usize],
-        );
-        if collapse_geometry_ok(m, e, p, hi, fit) && collapse_geometry_ok(m, e ^ 1, p, hi, fit) {
-            m.pos[v1 as usize] = p;
-            m.hint[v1 as usize] = near;
-            m.collapse(e);
-        }
-    }
-}
-
 fn target_valence(m: &HalfedgeMesh, v: u32) -> i32 {
     if m.is_boundary_vertex(v) { 4 } else { 6 }
-}
-
-fn equalize_valences(m: &mut HalfedgeMesh, fit: Fit) {
-    let edges: Vec<u32> = m.edges().collect();
-    for h in edges {
-        if m.is_boundary_edge(h) || !m.is_flip_ok(h) {
-            continue;
-        }
-        let (a, b) = (m.from(h), m.to(h));
-        let (c, d) = (m.to(m.next(h)), m.to(m.next(h ^ 1)));
-        if m.locked[c as usize] && m.locked[d as usize] {
-            continue; // see collapse_geometry_ok: no new edge between junction vertices
-        }
-        let dev = |v: u32, delta: i32| (m.valence(v) as i32 + delta - target_valence(m, v)).abs();
-        let before = dev(a, 0) + dev(b, 0) + dev(c, 0) + dev(d, 0);
-        let after = dev(a, -1) + dev(b, -1) + dev(c, 1) + dev(d, 1);
-        if after < before && flip_geometry_ok(m, a, b, c, d, fit) {
-            m.flip(h);
-        }
-    }
 }
 
 /// Flipping a-b into c-d keeps both triangles facing the same way and good enough.
@@ -770,43 +1132,4 @@ pub(super) fn flip_geometry_ok(m: &HalfedgeMesh, a: u32, b: u32, c: u32, d: u32,
     q_new >= q_old.min(MIN_QUALITY)
         && fit.check_face(m, m.face(h), pd, pc, pa, &mut hint)
         && fit.check_face(m, m.face(h ^ 1), pc, pd, pb, &mut hint)
-}
-
-/// Tangential relaxation toward the centroid of the one-ring, then projection
-/// onto the reference; moves that would turn a triangle over are skipped.
-fn relax_and_project(m: &mut HalfedgeMesh, fit: Fit) {
-    let moves: Vec<(u32, DVec3, u32)> = m
-        .vertices()
-        .collect::<Vec<_>>()
-        .into_iter()
-        .filter(|&v| !m.locked[v as usize] && !m.is_boundary_vertex(v))
-        .map(|v| {
-            let p = m.pos[v as usize];
-            let mut centroid = DVec3::ZERO;
-            let mut normal = DVec3::ZERO;
-            let mut k = 0.0;
-            for h in m.outgoing(v) {
-                centroid += m.pos[m.to(h) as usize];
-                k += 1.0;
-                if !m.is_boundary_halfedge(h) {
-                    normal += m.face_normal(m.face(h));
-                }
-            }
-            let n = normal.normalize_or_zero();
-            let d = centroid / k - p;
-            let (onto, near) = fit
-                .reference
-                .project_from(p + d - n * d.dot(n), m.hint[v as usize]);
-            (v, onto, near)
-        })
-        .collect();
-    for (v, p, near) in moves {
-        // the triangle under the new position starts the fit walks
-        let old_hint = std::mem::replace(&mut m.hint[v as usize], near);
-        if move_ok(m, v, p, fit) {
-            m.pos[v as usize] = p;
-        } else {
-            m.hint[v as usize] = old_hint;
-        }
-    }
 }

@@ -1,16 +1,25 @@
 //! Remeshing: smooth away the voxel staircase and remesh every patch to a
-//! target edge length in mm, keeping the junction curves shared.
+//! target edge length that follows the geometry, keeping the junction
+//! curves shared and never letting two triangles cross.
 //!
-//! [`remesh`] runs the stage: the [`network`] says which vertices are
-//! corners, on junction curves or interior; [`smooth`] (Taubin λ/μ, confined to
-//! a box of `max_displacement` voxels around each start position) gives the
-//! smoothed *reference*; the isotropic remesher then splits, collapses, flips
-//! and relaxes edges (curves first, then patches in parallel) and projects
-//! vertices back onto the reference; a repair pass removes crossings
-//! with local operations, and where it cannot, the patches are remeshed
-//! again with shorter edges around the crossings, then with the smoothed
-//! (crossing-free) surface kept around them, in growing regions up to all
-//! of it: the result never self-intersects.
+//! [`remesh`] runs the stage:
+//! 1. the [`network`] says which vertices are corners, on junction curves
+//!    or interior (and which small islands keep their extracted shape);
+//! 2. [`smooth`] (Taubin λ/μ, confined to a box of `max_displacement` voxels
+//!    around each start position, then untangled) gives the smoothed
+//!    *reference*, which crosses itself nowhere;
+//! 3. the isotropic remesher splits, collapses, flips and relaxes edges
+//!    toward the [`sizing`] field h(x) (the user's target where there is
+//!    room, less where label regions are thin), curves first, then
+//!    patches, projecting vertices back onto the reference; every operation
+//!    is checked by a crossing guard against every other triangle, so the
+//!    result crosses itself nowhere either. Space is cut into slabs
+//!    remeshed in parallel (see `work.rs`), with the same result for any
+//!    number of threads.
+//!
+//! Where an operation cannot be done safely the triangles stay as they
+//! are, there only; [`Remeshed::kept_share`] says how much of the surface
+//! that left as extracted.
 //!
 //! ```
 //! use septa::config::Resolved;
@@ -23,27 +32,41 @@
 //! let vol = LabelVolume::from_values(Dims::new(10, 10, 10).unwrap(), &v, Geometry::identity()).unwrap();
 //! let pre = preprocess(&vol, &Resolved::defaults(&vol));
 //! let mesh = extract(&pre.refined, label_infos(&vol, None), *vol.geometry(), &ExtractOptions::default()).unwrap();
-//! let out = remesh(&mesh, &RemeshParams { target_edge: 2.0, ..Default::default() }).unwrap();
+//! let params = RemeshParams { target_edge: 2.0, ..Default::default() };
+//! let sizing = params.sizing(pre.refined.grid(), vol.geometry());
+//! let out = remesh(&mesh, &sizing, &params).unwrap();
 //! assert!(out.mesh.triangle_count() < mesh.triangle_count());
 //! ```
 
+mod guard;
 pub mod halfedge;
 mod isotropic;
 pub mod network;
-mod repair;
-mod sizing;
+pub mod sizing;
 pub mod smooth;
+mod work;
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::mesh::InterfaceMesh;
+use crate::geom::nearest::{CurveRef, SurfaceRef};
+use crate::mesh::{InterfaceMesh, JunctionCurve};
+use crate::volume::{Geometry, PaddedLabels};
+use halfedge::{HalfedgeMesh, NONE};
+use network::VertexKind;
+pub use sizing::Sizing;
+use work::{Shared, Slabs, Work};
 
 /// Parameters of [`remesh`].
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct RemeshParams {
-    /// Target edge length in mm.
+    /// Largest target edge length in mm: the target wherever the structures
+    /// leave room for it.
     pub target_edge: f64,
+    /// Smallest target edge length in mm (where label regions are thinner);
+    /// `None`: half the smallest voxel spacing.
+    pub min_edge: Option<f64>,
     /// Taubin λ/μ smoothing passes.
     pub smooth_iterations: u32,
     /// Largest displacement by smoothing, in voxels along each index axis.
@@ -56,6 +79,7 @@ impl Default for RemeshParams {
     fn default() -> Self {
         RemeshParams {
             target_edge: 2.0,
+            min_edge: None,
             smooth_iterations: 10,
             max_displacement: 0.5,
             iterations: 8,
@@ -65,8 +89,36 @@ impl Default for RemeshParams {
 
 impl RemeshParams {
     /// The default target edge for a volume's geometry: twice the mean voxel spacing.
-    pub fn default_target(geometry: &crate::volume::Geometry) -> f64 {
+    pub fn default_target(geometry: &Geometry) -> f64 {
         2.0 * geometry.spacing().iter().sum::<f64>() / 3.0
+    }
+
+    /// The default smallest edge for a volume's geometry: half the smallest spacing.
+    pub fn default_min_edge(geometry: &Geometry) -> f64 {
+        0.5 * geometry
+            .spacing()
+            .iter()
+            .cloned()
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The smallest target edge for `geometry` (never above the largest).
+    pub fn min_edge_for(&self, geometry: &Geometry) -> f64 {
+        self.min_edge
+            .unwrap_or_else(|| Self::default_min_edge(geometry))
+            .min(self.target_edge)
+    }
+
+    /// The sizing field of a label grid (the preprocessed volume's) for these
+    /// parameters: targets from [`RemeshParams::min_edge_for`] to
+    /// `target_edge`.
+    pub fn sizing(&self, grid: &PaddedLabels, geometry: &Geometry) -> Sizing {
+        Sizing::from_labels(
+            grid,
+            geometry,
+            self.min_edge_for(geometry),
+            self.target_edge,
+        )
     }
 
     /// Checks the parameters (what [`remesh`] does first).
@@ -76,6 +128,13 @@ impl RemeshParams {
                 "target edge length {} mm: it must be a positive number",
                 self.target_edge
             )));
+        }
+        if let Some(m) = self.min_edge {
+            if !(m.is_finite() && m > 0.0) {
+                return Err(Error::invalid(format!(
+                    "smallest edge length {m} mm: it must be a positive number"
+                )));
+            }
         }
         if !(self.max_displacement.is_finite() && self.max_displacement >= 0.0) {
             return Err(Error::invalid(format!(
@@ -93,15 +152,11 @@ pub struct Remeshed {
     pub mesh: InterfaceMesh,
     /// The smoothed extraction (the surface the remeshed vertices lie on).
     pub smoothed: InterfaceMesh,
-    /// Pairs of intersecting triangles left (zero unless the smoothed
-    /// extraction itself intersects, i.e. the input mesh did).
-    pub intersections_left: usize,
-    /// Vertices kept at their smoothed positions (not remeshed) around
-    /// crossings the repair pass could not remove.
-    pub kept: usize,
-    /// Remeshing attempts: 1, or more where crossings were left (see
-    /// [`remesh`]).
-    pub attempts: usize,
+    /// Share of the output surface (by area) left as extracted: triangles no
+    /// operation could change safely, and small islands (kept by design).
+    pub kept_share: f64,
+    /// The part of [`Remeshed::kept_share`] that is small islands.
+    pub island_share: f64,
     /// Wall time of each step.
     pub timings: RemeshTimings,
 }
@@ -111,45 +166,11 @@ pub struct Remeshed {
 pub struct RemeshTimings {
     /// Staircase smoothing (with untangling): the reference surface.
     pub smooth: f64,
-    /// Setting up patch meshes and reference search structures.
+    /// The reference search structures.
     pub setup: f64,
-    /// Junction curve passes, all iterations.
-    pub curves: f64,
-    /// Patch passes, all iterations.
-    pub patches: f64,
-    /// Self-intersection repair.
-    pub repair: f64,
+    /// The remeshing iterations.
+    pub iterations: f64,
 }
-
-/// Rounds of the self-intersection repair pass.
-const REPAIR_ROUNDS: usize = 20;
-
-/// Remeshing attempts with shorter target edges (L/2, then L/4, ...)
-/// within L/2 of the crossings left, before those that also keep the
-/// smoothed surface there. One: on the noisy 512³ phantom a second (L/4)
-/// made more crossings than the first, and on a noisy 64³ it cost quality.
-const REFINE_ATTEMPTS: usize = 1;
-
-/// Remeshing attempts keeping the smoothed surface in growing regions (the
-/// crossing triangles' boxes grown by 0, L/2, 1.5 L, 3.5 L), then, last,
-/// everywhere.
-const KEEP_ATTEMPTS: usize = 5;
-
-/// More crossing pairs than this after the first attempt: keep the smoothed
-/// extraction everywhere at once (see [`remesh`]). The phantoms leave at
-/// most 80 (64³, noise 0.02; 37 at 512³); a noisy k-means segmentation
-/// (2 × 2 × 3 mm voxels, 17.5 M extracted triangles, L = 4.7 mm) left 7,757,
-/// and its further attempts took 35 s, then up to 100 s each as more was
-/// kept, 9 minutes in all, to keep 96 % anyway.
-const CROSSINGS_ALL_OVER: usize = 1000;
-
-/// More crossing pairs than this after a later attempt: keep the smoothed
-/// extraction everywhere. The phantoms leave at most 17 after the second
-/// attempt (512³); the MNI152 tissue map (1 mm, a folded grey-matter sheet
-/// whose banks nearly touch in the sulci, L = 2 mm) left 523, 176, 226,
-/// 100, 137, 93 pairs in six attempts at new places each time (regions
-/// 511 → 1,244), 2 minutes to keep 98 % in the end.
-const CROSSINGS_NOT_CONVERGING: usize = 100;
 
 /// How far (in voxels) a remeshed triangle's centroid may lie from the
 /// smoothed reference: keeps chords from cutting across thin structures.
@@ -162,8 +183,13 @@ const ISLAND_VOXELS: f64 = 27.0;
 /// See [`ISLAND_VOXELS`].
 const ISLAND_TARGETS: f64 = 2.0;
 
-/// Smooths and remeshes all patches of `mesh`.
-pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
+/// Slabs are at least this many times as wide as an operation's reach: the
+/// slabs of one colour are then far enough apart never to meet.
+const SLAB_REACHES: f64 = 3.0;
+
+/// Smooths and remeshes all patches of `mesh` toward the targets of
+/// `sizing` (see the module docs).
+pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> Result<Remeshed> {
     params.validate()?;
     let mut timings = RemeshTimings::default();
     let clock = std::time::Instant::now();
@@ -176,88 +202,99 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
         params.max_displacement,
     );
     timings.smooth = clock.elapsed().as_secs_f64();
+
+    let clock = std::time::Instant::now();
+    let groups = mesh.patch_triangles();
+    let references: Vec<SurfaceRef> = groups
+        .par_iter()
+        .map(|tris| patch_reference(mesh, &smoothed_pos, tris))
+        .collect::<Result<_>>()?;
+    let curve_references: Vec<CurveRef> = net
+        .curves
+        .par_iter()
+        .map(|c| {
+            let pts: Vec<DVec3> = c
+                .vertices
+                .iter()
+                .map(|&v| smoothed_pos[v as usize])
+                .collect();
+            CurveRef::new(&pts, c.closed)
+        })
+        .collect();
+    // every triangle starts as its own reference triangle (the references
+    // number each patch's triangles in mesh order)
+    let mut hint = vec![0u32; mesh.triangle_count()];
+    for tris in &groups {
+        for (i, &t) in tris.iter().enumerate() {
+            hint[t as usize] = i as u32;
+        }
+    }
+    let mut work = Work {
+        pos: smoothed_pos.clone(),
+        kind: net.kind.clone(),
+        tris: mesh.triangles.clone(),
+        patch: mesh.triangle_patch.clone(),
+        hint,
+        kept: vec![true; mesh.triangle_count()],
+        curves: net.curves.iter().map(|c| c.vertices.clone()).collect(),
+        closed: net.curves.iter().map(|c| c.closed).collect(),
+    };
+    timings.setup = clock.elapsed().as_secs_f64();
+
+    let clock = std::time::Instant::now();
     let voxel = mesh
         .geometry
         .spacing()
         .iter()
         .cloned()
         .fold(f64::INFINITY, f64::min);
-    // Where the repair cannot remove a crossing, remesh again: first with
-    // shorter target edges around the crossings (finer chords follow the
-    // smoothed surface more closely), then also keeping the smoothed surface
-    // (crossing-free) there, in growing regions; the last attempt keeps
-    // everything, so the result never self-intersects.
-    let target = params.target_edge;
-    let last = REFINE_ATTEMPTS + KEEP_ATTEMPTS;
-    let mut regions: Vec<(DVec3, DVec3)> = Vec::new();
-    let mut kept = 0;
-    let mut attempt = 0;
-    let mut runs = 0;
-    let (r, intersections_left) = loop {
-        runs += 1;
-        let sizing = if attempt == 0 {
-            sizing::Sizing::uniform(target)
-        } else {
-            let finer = target / (1u32 << attempt.min(REFINE_ATTEMPTS)) as f64;
-            let grow = DVec3::splat(0.5 * target);
-            sizing::Sizing::with_regions(
-                target,
-                regions
-                    .iter()
-                    .map(|&(lo, hi)| (lo - grow, hi + grow, finer))
-                    .collect(),
-            )
-        };
-        let mut net = net.clone();
-        if attempt == last {
-            kept = net.keep_all();
-        } else if attempt > REFINE_ATTEMPTS {
-            let k = attempt - REFINE_ATTEMPTS;
-            let r = target * ((1u32 << (k - 1)) as f64 - 1.0) * 0.5;
-            let grown: Vec<_> = regions
-                .iter()
-                .map(|&(lo, hi)| (lo - DVec3::splat(r), hi + DVec3::splat(r)))
-                .collect();
-            kept = net.keep_within(&smoothed_pos, &grown);
-        }
-        let clock = std::time::Instant::now();
-        let mut r =
-            isotropic::Remesher::new(mesh, &net, &smoothed_pos, sizing, FIT_VOXELS * voxel)?;
-        timings.setup += clock.elapsed().as_secs_f64();
-        // (with every vertex kept the output is the smoothed extraction as is)
-        let iterations = if attempt == last {
-            0
-        } else {
-            params.iterations
-        };
-        let (curves, patches) = r.run(iterations);
-        timings.curves += curves;
-        timings.patches += patches;
-        let clock = std::time::Instant::now();
-        let left = r.repair_intersections(REPAIR_ROUNDS);
-        timings.repair += clock.elapsed().as_secs_f64();
-        if left == 0 || attempt == last {
-            break (r, left);
-        }
-        // Crossings all over (structures much thinner than L: a noisy
-        // segmentation at a coarse target), or still many after the shorter
-        // edges (each attempt makes new ones elsewhere, as a change of target
-        // in one place changes its patch's whole sequence of operations):
-        // further attempts would be slower and slower as more is kept, and
-        // end keeping nearly everything; keep everything at once.
-        let too_many = if attempt == 0 {
-            CROSSINGS_ALL_OVER
-        } else {
-            CROSSINGS_NOT_CONVERGING
-        };
-        if left > too_many {
-            attempt = last;
-            continue;
-        }
-        regions.extend(r.crossing_boxes());
-        attempt += 1;
+    let shared = Shared {
+        references: &references,
+        curve_references: &curve_references,
+        sizing,
+        eps: FIT_VOXELS * voxel,
     };
-    let out = r.into_mesh(mesh);
+    for it in 0..params.iterations {
+        if work.tris.is_empty() {
+            break;
+        }
+        let longest = work
+            .tris
+            .par_iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| work.pos[v as usize]);
+                (a - b).length().max((b - c).length()).max((c - a).length())
+            })
+            .reduce(|| 0.0, f64::max);
+        // new triangles reach at most an edge beyond their vertices, which lie
+        // at most an edge beyond their slab
+        let reach = 2.0 * longest.max(sizing.max() * isotropic_split_above());
+        let slabs = Slabs::over(&work, SLAB_REACHES * reach, reach, 0.5 * (it % 2) as f64);
+        work.pass(&slabs, 0, &shared);
+        work.pass(&slabs, 1, &shared);
+    }
+    timings.iterations = clock.elapsed().as_secs_f64();
+
+    let out = into_mesh(&work, mesh);
+    let area = |t: &[u32; 3]| {
+        let [a, b, c] = t.map(|v| work.pos[v as usize]);
+        0.5 * (b - a).cross(c - a).length()
+    };
+    let island = |t: &[u32; 3]| {
+        t.iter()
+            .all(|&v| work.kind[v as usize] == VertexKind::Island)
+    };
+    let (total, kept, islands) = work
+        .tris
+        .par_iter()
+        .zip(&work.kept)
+        .map(|(t, &k)| {
+            let a = area(t);
+            let k = k || island(t);
+            (a, if k { a } else { 0.0 }, if island(t) { a } else { 0.0 })
+        })
+        .reduce(|| (0.0, 0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1, x.2 + y.2));
+    let share = |x: f64| if total > 0.0 { x / total } else { 0.0 };
     let smoothed = InterfaceMesh {
         positions: smoothed_pos,
         ..mesh.clone()
@@ -265,11 +302,83 @@ pub fn remesh(mesh: &InterfaceMesh, params: &RemeshParams) -> Result<Remeshed> {
     Ok(Remeshed {
         mesh: out,
         smoothed,
-        intersections_left,
-        kept,
-        attempts: runs,
+        kept_share: share(kept),
+        island_share: share(islands),
         timings,
     })
+}
+
+/// The split threshold (a multiple of the target) the remesher uses.
+fn isotropic_split_above() -> f64 {
+    crate::mesh::quality::EDGE_RANGE_HI
+}
+
+/// The smoothed reference of one patch: its triangles at the smoothed
+/// positions, with their neighbours across edges (for walks).
+fn patch_reference(mesh: &InterfaceMesh, smoothed: &[DVec3], tris: &[u32]) -> Result<SurfaceRef> {
+    let mut local_of = hashbrown::HashMap::with_capacity(tris.len());
+    let mut pos = Vec::new();
+    let mut tag = Vec::new();
+    let mut local_tris = Vec::with_capacity(tris.len());
+    let mut ref_tris = Vec::with_capacity(tris.len());
+    for &t in tris {
+        let tri = mesh.triangles[t as usize];
+        ref_tris.push(tri.map(|v| smoothed[v as usize]));
+        local_tris.push(tri.map(|v| {
+            *local_of.entry(v).or_insert_with(|| {
+                pos.push(smoothed[v as usize]);
+                tag.push(v);
+                (pos.len() - 1) as u32
+            })
+        }));
+    }
+    let m = HalfedgeMesh::from_triangles(pos, tag, &local_tris).map_err(|e| {
+        let p = mesh.triangle_patch[tris[0] as usize] as usize;
+        let [a, b] = mesh.patches[p].labels;
+        Error::invalid(format!(
+            "patch {} | {} is not a manifold ({e:?}); remeshing needs valid patches (run `septa check`)",
+            mesh.label_name(a),
+            mesh.label_name(b)
+        ))
+    })?;
+    let adjacent: Vec<[u32; 3]> = (0..ref_tris.len() as u32)
+        .map(|f| {
+            let h = m.face_halfedge(f);
+            let mut row = [crate::geom::nearest::NO_TRIANGLE; 3];
+            for (k, g) in [h, m.next(h), m.prev(h)].into_iter().enumerate() {
+                let across = m.face(g ^ 1);
+                if across != NONE {
+                    row[k] = across;
+                }
+            }
+            row
+        })
+        .collect();
+    Ok(SurfaceRef::with_adjacency(ref_tris, adjacent))
+}
+
+/// The working mesh as an interface mesh (patches and labels of `like`).
+fn into_mesh(work: &Work, like: &InterfaceMesh) -> InterfaceMesh {
+    let junctions = work
+        .curves
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.len() >= 2)
+        .map(|(i, c)| JunctionCurve {
+            vertices: c.clone(),
+            closed: work.closed[i],
+            labels: like.junctions[i].labels.clone(),
+        })
+        .collect();
+    InterfaceMesh {
+        positions: work.pos.clone(),
+        triangles: work.tris.clone(),
+        triangle_patch: work.patch.clone(),
+        patches: like.patches.clone(),
+        junctions,
+        labels: like.labels.clone(),
+        geometry: like.geometry,
+    }
 }
 
 #[cfg(test)]
@@ -278,13 +387,11 @@ mod tests {
     use crate::config::Resolved;
     use crate::extract::{ExtractOptions, extract, label_infos};
     use crate::preprocess::preprocess;
-    use crate::volume::{Dims, Geometry, LabelVolume};
+    use crate::volume::{Dims, LabelVolume};
 
-    /// With every vertex kept, remeshing (all its iterations) changes
-    /// nothing: the output is the smoothed extraction, the last resort of
-    /// [`remesh`] against crossings.
+    /// With no iterations, the output is the smoothed extraction, all of it kept.
     #[test]
-    fn keeping_everything_gives_the_smoothed_extraction() {
+    fn no_iterations_give_the_smoothed_extraction() {
         // two labels side by side in a background: three patches, junction curves
         let v: Vec<i64> = (0..512)
             .map(|i| {
@@ -310,21 +417,13 @@ mod tests {
         )
         .unwrap();
         assert!(!mesh.junctions.is_empty());
-        let mut net = network::Network::new(&mesh);
-        let smoothed = smooth::smooth(&mesh, &net, 10, 0.5);
-        assert_eq!(net.keep_all(), mesh.vertex_count());
-        let mut r =
-            isotropic::Remesher::new(&mesh, &net, &smoothed, sizing::Sizing::uniform(2.0), 0.3)
-                .unwrap();
-        r.run(8);
-        assert_eq!(r.repair_intersections(REPAIR_ROUNDS), 0);
-        let out = r.into_mesh(&mesh);
-        assert_eq!(out.triangle_count(), mesh.triangle_count());
-        let key = |p: &DVec3| p.to_array().map(f64::to_bits);
-        let mut a: Vec<_> = out.positions.iter().map(key).collect();
-        let mut b: Vec<_> = smoothed.iter().map(key).collect();
-        a.sort_unstable();
-        b.sort_unstable();
-        assert_eq!(a, b);
+        let params = RemeshParams {
+            iterations: 0,
+            ..Default::default()
+        };
+        let out = remesh(&mesh, &Sizing::uniform(2.0), &params).unwrap();
+        assert_eq!(out.mesh.triangles, mesh.triangles);
+        assert_eq!(out.mesh.positions, out.smoothed.positions);
+        assert_eq!(out.kept_share, 1.0);
     }
 }

@@ -1,0 +1,602 @@
+//! The working mesh of the remesher and its domain decomposition.
+//!
+//! Between passes the mesh is one vertex pool for all patches ([`Work`]).
+//! A pass cuts space into slabs along the mesh's longest axis; every
+//! triangle belongs to the slab holding its centroid. Slabs of one colour
+//! (every other slab) are remeshed in parallel, each by its own
+//! [`Remesher`] over its triangles, with the vertices it shares with other
+//! slabs locked and the triangles of the neighbouring slabs beside it as
+//! fixed obstacles of its crossing guard. Slabs of one colour are a whole
+//! slab apart, wider than anything an operation can reach, so no two of them
+//! touch the same triangle or see each other's; the result does not depend
+//! on the number of threads. The other colour follows, then the next
+//! iteration with the slab borders moved by half a slab, so that no seam
+//! stays locked.
+
+use glam::DVec3;
+use hashbrown::HashMap;
+use rayon::prelude::*;
+
+use super::isotropic::{CurveRun, Region, RegionPatch, RegionResult, Remesher};
+use super::network::VertexKind;
+use super::sizing::Sizing;
+use crate::geom::nearest::{CurveRef, SurfaceRef};
+
+/// The mesh being remeshed: one vertex pool, triangles with their patch, a
+/// hint into the patch's reference, and whether they are unchanged since the
+/// extraction; the junction curves over the pool.
+#[derive(Clone, Debug)]
+pub(super) struct Work {
+    pub(super) pos: Vec<DVec3>,
+    pub(super) kind: Vec<VertexKind>,
+    pub(super) tris: Vec<[u32; 3]>,
+    pub(super) patch: Vec<u32>,
+    pub(super) hint: Vec<u32>,
+    pub(super) kept: Vec<bool>,
+    pub(super) curves: Vec<Vec<u32>>,
+    pub(super) closed: Vec<bool>,
+}
+
+/// What every slab's remesher shares (read only).
+pub(super) struct Shared<'r> {
+    pub(super) references: &'r [SurfaceRef],
+    pub(super) curve_references: &'r [CurveRef],
+    pub(super) sizing: &'r Sizing,
+    /// Largest distance of a new triangle's centroid from the reference (mm).
+    pub(super) eps: f64,
+}
+
+/// The slabs of one pass: borders at `origin + k · width` along `axis`.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Slabs {
+    pub(super) axis: usize,
+    pub(super) origin: f64,
+    pub(super) width: f64,
+    pub(super) count: usize,
+    /// How far beyond its slab an operation may make triangles (mm).
+    pub(super) reach: f64,
+}
+
+impl Slabs {
+    /// Slabs over `work`'s extent at least `min_width` wide (and about 16 in
+    /// all), shifted by `shift` slab widths.
+    pub(super) fn over(work: &Work, min_width: f64, reach: f64, shift: f64) -> Slabs {
+        let (lo, hi) = work.pos.iter().fold(
+            (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
+        let ext = (hi - lo).max(DVec3::ZERO);
+        let axis = if ext.x >= ext.y && ext.x >= ext.z {
+            0
+        } else if ext.y >= ext.z {
+            1
+        } else {
+            2
+        };
+        let width = (ext[axis] / 16.0).max(min_width).max(1e-9);
+        let origin = lo[axis] - width * shift.fract();
+        let count = ((hi[axis] - origin) / width).floor() as usize + 1;
+        Slabs {
+            axis,
+            origin,
+            width,
+            count: count.max(1),
+            reach,
+        }
+    }
+
+    #[inline]
+    fn of(&self, x: f64) -> usize {
+        let k = ((x - self.origin) / self.width).floor();
+        if k.is_nan() || k < 0.0 {
+            0
+        } else {
+            (k as usize).min(self.count - 1)
+        }
+    }
+}
+
+/// What one slab's remeshing gives back, over global ids: `NEW + i` for the
+/// i-th vertex it made.
+struct Outcome {
+    moved: Vec<(u32, DVec3)>,
+    dead: Vec<u32>,
+    made: Vec<(DVec3, VertexKind)>,
+    triangles: Vec<([u32; 3], u32, u32, bool)>,
+    /// Per curve run: (curve, first index, edges, closed run, new vertices).
+    runs: Vec<(u32, usize, usize, bool, Vec<u32>)>,
+}
+
+const NEW: u32 = 1 << 31;
+
+impl Work {
+    /// One remeshing iteration of every slab of colour `colour` (0 or 1).
+    pub(super) fn pass(&mut self, slabs: &Slabs, colour: usize, shared: &Shared) {
+        let slab_of: Vec<u32> = self
+            .tris
+            .par_iter()
+            .map(|t| {
+                let c = (self.pos[t[0] as usize][slabs.axis]
+                    + self.pos[t[1] as usize][slabs.axis]
+                    + self.pos[t[2] as usize][slabs.axis])
+                    / 3.0;
+                slabs.of(c) as u32
+            })
+            .collect();
+        let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); slabs.count];
+        for (t, &s) in slab_of.iter().enumerate() {
+            buckets[s as usize].push(t as u32);
+        }
+        let mut uses = vec![0u32; self.pos.len()];
+        for t in &self.tris {
+            for &v in t {
+                uses[v as usize] += 1;
+            }
+        }
+        let todo: Vec<usize> = (0..slabs.count).filter(|s| s % 2 == colour).collect();
+        let outcomes: Vec<Outcome> = todo
+            .par_iter()
+            .map(|&s| self.remesh_slab(slabs, s, &buckets, &uses, shared))
+            .collect();
+        self.merge(&todo, &slab_of, outcomes);
+        if std::env::var_os("SEPTA_DEBUG_WORK").is_some() {
+            if let Err(e) = self.check() {
+                panic!("after pass colour {colour} over {slabs:?}: {e}");
+            }
+        }
+    }
+
+    /// Every patch a manifold: each directed edge once per patch.
+    pub(super) fn check(&self) -> Result<(), String> {
+        let mut seen: HashMap<(u32, u32, u32), usize> = HashMap::new();
+        for (t, tri) in self.tris.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                if let Some(o) = seen.insert((self.patch[t], a, b), t) {
+                    return Err(format!(
+                        "patch {}: edge {a}-{b} in triangles {o} {:?} and {t} {:?}",
+                        self.patch[t], self.tris[o], tri
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn remesh_slab(
+        &self,
+        slabs: &Slabs,
+        s: usize,
+        buckets: &[Vec<u32>],
+        uses: &[u32],
+        shared: &Shared,
+    ) -> Outcome {
+        let own = &buckets[s];
+        let empty = Outcome {
+            moved: Vec::new(),
+            dead: Vec::new(),
+            made: Vec::new(),
+            triangles: Vec::new(),
+            runs: Vec::new(),
+        };
+        if own.is_empty() {
+            return empty;
+        }
+        let axis = slabs.axis;
+        let x0 = slabs.origin + s as f64 * slabs.width - slabs.reach;
+        let x1 = slabs.origin + (s + 1) as f64 * slabs.width + slabs.reach;
+        let mut lo = DVec3::splat(f64::NEG_INFINITY);
+        let mut hi = DVec3::splat(f64::INFINITY);
+        lo[axis] = x0;
+        hi[axis] = x1;
+
+        // local vertices: those of the slab's triangles first
+        let mut local: HashMap<u32, u32> = HashMap::with_capacity(own.len());
+        let mut global: Vec<u32> = Vec::with_capacity(own.len());
+        let mut count: Vec<u32> = Vec::with_capacity(own.len());
+        let mut local_of = |v: u32, global: &mut Vec<u32>, count: &mut Vec<u32>| -> u32 {
+            *local.entry(v).or_insert_with(|| {
+                global.push(v);
+                count.push(0);
+                (global.len() - 1) as u32
+            })
+        };
+        let mut own_tris = Vec::with_capacity(own.len());
+        for &t in own {
+            let lt = self.tris[t as usize].map(|v| {
+                let l = local_of(v, &mut global, &mut count);
+                count[l as usize] += 1;
+                l
+            });
+            own_tris.push(lt);
+        }
+        let n_own_vertices = global.len();
+        let free: Vec<bool> = (0..n_own_vertices)
+            .map(|l| count[l] == uses[global[l] as usize])
+            .collect();
+        // obstacles: the neighbouring slabs' triangles that reach the trusted box
+        let mut obstacles = Vec::new();
+        for nb in [s.wrapping_sub(1), s + 1] {
+            let Some(list) = buckets.get(nb) else {
+                continue;
+            };
+            for &t in list {
+                let tri = self.tris[t as usize];
+                let xs = tri.map(|v| self.pos[v as usize][axis]);
+                let (tlo, thi) = (xs[0].min(xs[1]).min(xs[2]), xs[0].max(xs[1]).max(xs[2]));
+                if thi >= x0 && tlo <= x1 {
+                    obstacles.push(tri.map(|v| local_of(v, &mut global, &mut count)));
+                }
+            }
+        }
+        let pos: Vec<DVec3> = global.iter().map(|&g| self.pos[g as usize]).collect();
+        let kind: Vec<VertexKind> = (0..global.len())
+            .map(|l| {
+                if l < n_own_vertices && free[l] {
+                    self.kind[global[l] as usize]
+                } else {
+                    VertexKind::Corner
+                }
+            })
+            .collect();
+        let is_free = |v: u32| {
+            local
+                .get(&v)
+                .is_some_and(|&l| (l as usize) < n_own_vertices && free[l as usize])
+        };
+
+        // patches, by global id
+        let mut patch_ids: Vec<u32> = own.iter().map(|&t| self.patch[t as usize]).collect();
+        patch_ids.sort_unstable();
+        patch_ids.dedup();
+        let mut patches: Vec<RegionPatch> = patch_ids
+            .iter()
+            .map(|&p| RegionPatch {
+                reference: &shared.references[p as usize],
+                triangles: Vec::new(),
+                hints: Vec::new(),
+                kept: Vec::new(),
+            })
+            .collect();
+        for (i, &t) in own.iter().enumerate() {
+            let p = patch_ids
+                .binary_search(&self.patch[t as usize])
+                .expect("patch listed");
+            let rp = &mut patches[p];
+            rp.triangles.push(own_tris[i]);
+            rp.hints.push(self.hint[t as usize]);
+            rp.kept.push(self.kept[t as usize]);
+        }
+
+        // curve runs: maximal chains of edges with a free end
+        let mut curves_here: Vec<u32> = (0..n_own_vertices)
+            .filter(|&l| free[l])
+            .filter_map(|l| match self.kind[global[l] as usize] {
+                VertexKind::Curve(c) => Some(c),
+                _ => None,
+            })
+            .collect();
+        curves_here.sort_unstable();
+        curves_here.dedup();
+        let mut runs = Vec::new();
+        let mut run_keys = Vec::new();
+        for &c in &curves_here {
+            let cv = &self.curves[c as usize];
+            let closed = self.closed[c as usize];
+            let n = cv.len();
+            let edges = if closed { n } else { n - 1 };
+            let owned = |i: usize| is_free(cv[i]) || is_free(cv[(i + 1) % n]);
+            let to_local = |v: u32| *local.get(&v).expect("a vertex of the slab's triangles");
+            if closed && (0..edges).all(owned) {
+                runs.push(CurveRun {
+                    vertices: cv.iter().map(|&v| to_local(v)).collect(),
+                    closed: true,
+                    reference: &shared.curve_references[c as usize],
+                    curve: c,
+                });
+                run_keys.push((c, 0, edges, true));
+                continue;
+            }
+            // start after an edge that is not owned (an open curve: at its start)
+            let first = if closed {
+                ((0..edges).find(|&i| !owned(i)).expect("an edge not owned") + 1) % n
+            } else {
+                0
+            };
+            let mut k = 0;
+            while k < edges {
+                let i = (first + k) % n;
+                if !owned(i) {
+                    k += 1;
+                    continue;
+                }
+                let mut len = 0;
+                while k + len < edges && owned((first + k + len) % n) {
+                    len += 1;
+                }
+                runs.push(CurveRun {
+                    vertices: (0..=len).map(|j| to_local(cv[(i + j) % n])).collect(),
+                    closed: false,
+                    reference: &shared.curve_references[c as usize],
+                    curve: c,
+                });
+                run_keys.push((c, i, len, false));
+                k += len;
+            }
+        }
+
+        // the guard's cells: about the mean edge length of the slab
+        let mean_edge = own_tris
+            .iter()
+            .map(|t| (pos[t[0] as usize] - pos[t[1] as usize]).length())
+            .sum::<f64>()
+            / own_tris.len() as f64;
+        let cell = (1.5 * mean_edge).max(0.5 * shared.sizing.min());
+        let n_region = pos.len();
+        let region = Region {
+            pos,
+            kind,
+            patches,
+            curves: runs,
+            obstacles,
+            trusted: (lo, hi),
+        };
+        let mut r = Remesher::new(region, shared.sizing, shared.eps, cell);
+        r.iterate();
+        let result: RegionResult = r.finish();
+        if std::env::var_os("SEPTA_DEBUG_WORK").is_some() {
+            let mut seen: HashMap<(u32, u32, u32), usize> = HashMap::new();
+            for (i, t) in result.triangles.iter().enumerate() {
+                for k in 0..3 {
+                    let (a, b) = (t.vertices[k], t.vertices[(k + 1) % 3]);
+                    if let Some(o) = seen.insert((t.patch, a, b), i) {
+                        let info = |v: u32| {
+                            let v = v as usize;
+                            if v < n_region {
+                                format!(
+                                    "{v}: region vertex, global {}, own {}, free {}, kind {:?}",
+                                    global[v],
+                                    v < n_own_vertices,
+                                    v < n_own_vertices && free[v],
+                                    self.kind[global[v] as usize]
+                                )
+                            } else {
+                                format!("{v}: made here")
+                            }
+                        };
+                        panic!(
+                            "slab {s}: edge {a}-{b} twice: {:?} and {:?}\n  {}\n  {}",
+                            result.triangles[o].vertices,
+                            t.vertices,
+                            info(a),
+                            info(b)
+                        );
+                    }
+                }
+            }
+        }
+
+        // back to global ids
+        let to_global = |l: u32| -> u32 {
+            if (l as usize) < n_region {
+                global[l as usize]
+            } else {
+                NEW + (l - n_region as u32)
+            }
+        };
+        let mut out = empty;
+        for l in 0..n_own_vertices {
+            if !free[l] {
+                continue;
+            }
+            if result.alive[l] {
+                out.moved.push((global[l], result.pos[l]));
+            } else {
+                out.dead.push(global[l]);
+            }
+        }
+        for l in n_region..result.pos.len() {
+            out.made.push((result.pos[l], result.kind[l]));
+        }
+        for t in &result.triangles {
+            out.triangles.push((
+                t.vertices.map(to_global),
+                patch_ids[t.patch as usize],
+                t.hint,
+                t.kept,
+            ));
+        }
+        for ((c, start, edges, closed), cv) in run_keys.into_iter().zip(result.curves) {
+            out.runs.push((
+                c,
+                start,
+                edges,
+                closed,
+                cv.into_iter().map(to_global).collect(),
+            ));
+        }
+        out
+    }
+
+    /// Replaces the triangles of the slabs `done` with their outcomes.
+    fn merge(&mut self, done: &[usize], slab_of: &[u32], outcomes: Vec<Outcome>) {
+        let mut processed = vec![false; slab_of.iter().map(|&s| s as usize + 1).max().unwrap_or(0)];
+        for &s in done {
+            if s < processed.len() {
+                processed[s] = true;
+            }
+        }
+        let keep: Vec<bool> = slab_of.iter().map(|&s| !processed[s as usize]).collect();
+        let mut tris = Vec::with_capacity(self.tris.len());
+        let mut patch = Vec::with_capacity(self.tris.len());
+        let mut hint = Vec::with_capacity(self.tris.len());
+        let mut kept = Vec::with_capacity(self.tris.len());
+        for t in 0..self.tris.len() {
+            if keep[t] {
+                tris.push(self.tris[t]);
+                patch.push(self.patch[t]);
+                hint.push(self.hint[t]);
+                kept.push(self.kept[t]);
+            }
+        }
+        let mut alive = vec![true; self.pos.len()];
+        let mut runs_by_curve: HashMap<u32, Vec<(usize, usize, bool, Vec<u32>)>> = HashMap::new();
+        for o in outcomes {
+            let base = self.pos.len() as u32;
+            for (v, p) in o.moved {
+                self.pos[v as usize] = p;
+            }
+            for v in o.dead {
+                alive[v as usize] = false;
+            }
+            for (p, k) in o.made {
+                self.pos.push(p);
+                self.kind.push(k);
+                alive.push(true);
+            }
+            let g = |v: u32| if v >= NEW { base + (v - NEW) } else { v };
+            for (t, p, h, k) in o.triangles {
+                tris.push(t.map(g));
+                patch.push(p);
+                hint.push(h);
+                kept.push(k);
+            }
+            for (c, start, edges, closed, cv) in o.runs {
+                runs_by_curve.entry(c).or_default().push((
+                    start,
+                    edges,
+                    closed,
+                    cv.into_iter().map(g).collect(),
+                ));
+            }
+        }
+        self.tris = tris;
+        self.patch = patch;
+        self.hint = hint;
+        self.kept = kept;
+        let mut curves: Vec<u32> = runs_by_curve.keys().copied().collect();
+        curves.sort_unstable();
+        for c in curves {
+            let runs = runs_by_curve.remove(&c).expect("listed");
+            let cv = std::mem::take(&mut self.curves[c as usize]);
+            self.curves[c as usize] = splice(&cv, self.closed[c as usize], runs);
+        }
+        self.compact(alive);
+    }
+
+    /// Removes dead vertices (renumbering the rest in order).
+    fn compact(&mut self, alive: Vec<bool>) {
+        if alive.iter().all(|&a| a) {
+            return;
+        }
+        let mut map = vec![u32::MAX; self.pos.len()];
+        let mut next = 0u32;
+        let mut pos = Vec::with_capacity(self.pos.len());
+        let mut kind = Vec::with_capacity(self.pos.len());
+        for v in 0..self.pos.len() {
+            if alive[v] {
+                map[v] = next;
+                next += 1;
+                pos.push(self.pos[v]);
+                kind.push(self.kind[v]);
+            }
+        }
+        self.pos = pos;
+        self.kind = kind;
+        for t in &mut self.tris {
+            *t = t.map(|v| map[v as usize]);
+        }
+        for cv in &mut self.curves {
+            for v in cv.iter_mut() {
+                *v = map[*v as usize];
+            }
+            debug_assert!(cv.iter().all(|&v| v != u32::MAX), "a curve vertex died");
+        }
+    }
+}
+
+/// Curve `cv` with its runs put in place: a run (first index, edges,
+/// closed, new vertices) covers the old vertices `first ..= first + edges`
+/// (cyclically on a closed curve) and its new vertices start and end with
+/// the same two (a closed run is the whole curve).
+fn splice(cv: &[u32], closed: bool, runs: Vec<(usize, usize, bool, Vec<u32>)>) -> Vec<u32> {
+    let n = cv.len();
+    let mut from: HashMap<usize, (usize, Vec<u32>)> = HashMap::with_capacity(runs.len());
+    let mut inside = vec![false; n];
+    for (start, edges, whole, vertices) in runs {
+        if whole {
+            return vertices;
+        }
+        for j in 1..edges {
+            inside[(start + j) % n] = true;
+        }
+        from.insert(start, (edges, vertices));
+    }
+    let mut out = Vec::with_capacity(n);
+    // closed: walk once around from a vertex inside no run; open: from the start
+    let first = if closed {
+        (0..n).find(|&i| !inside[i]).unwrap_or(0)
+    } else {
+        0
+    };
+    let (mut i, mut steps) = (first, 0);
+    while steps < n {
+        match from.remove(&i) {
+            Some((edges, vertices)) => {
+                // all but its last vertex: the next step's
+                out.extend_from_slice(&vertices[..vertices.len() - 1]);
+                steps += edges;
+                i = (i + edges) % n;
+                if !closed && steps >= n - 1 {
+                    out.push(cv[n - 1]);
+                    break;
+                }
+            }
+            None => {
+                out.push(cv[i]);
+                steps += 1;
+                i = (i + 1) % n;
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::splice;
+
+    #[test]
+    fn runs_replace_their_inner_vertices() {
+        // open: 0-1-2-3-4-5, runs over 1..=3 (new 1, 10, 11, 12, 3) and 4..=5
+        let cv = [0, 1, 2, 3, 4, 5];
+        let out = splice(
+            &cv,
+            false,
+            vec![
+                (1, 2, false, vec![1, 10, 11, 12, 3]),
+                (4, 1, false, vec![4, 13, 5]),
+            ],
+        );
+        assert_eq!(out, vec![0, 1, 10, 11, 12, 3, 4, 13, 5]);
+        // a run to the end of an open curve, one that collapsed its inner vertex
+        assert_eq!(
+            splice(&cv, false, vec![(3, 2, false, vec![3, 5])]),
+            vec![0, 1, 2, 3, 5]
+        );
+        assert_eq!(
+            splice(&cv, false, vec![(0, 5, false, vec![0, 9, 5])]),
+            vec![0, 9, 5]
+        );
+        // closed: a run over the wrap (4, 5, 0, 1)
+        let out = splice(&cv, true, vec![(4, 3, false, vec![4, 20, 1])]);
+        assert_eq!(out, vec![1, 2, 3, 4, 20]);
+        // the whole closed curve
+        assert_eq!(
+            splice(&cv, true, vec![(0, 6, true, vec![7, 8, 9])]),
+            vec![7, 8, 9]
+        );
+        // no run: unchanged
+        assert_eq!(splice(&cv, true, vec![]), cv.to_vec());
+    }
+}
