@@ -228,9 +228,7 @@ fn main() {
     );
     dump(dir, "remeshed", &pairs);
 
-    let opts = QualityOptions {
-        target_edge_mm: params.target_edge,
-    };
+    let opts = QualityOptions::target(params.target_edge);
     let (s, q) = best(reps, || quality(m, Some(&mesh), &opts));
     println!("quality(): {s}");
     let (s, _) = best(reps, || quality(m, None, &opts));

@@ -163,13 +163,7 @@ fn close(a: f64, b: f64, tol: f64) -> bool {
 #[test]
 fn octahedron_exact() {
     let m = octahedron();
-    let r = quality(
-        &m,
-        None,
-        &QualityOptions {
-            target_edge_mm: 2f64.sqrt(),
-        },
-    );
+    let r = quality(&m, None, &QualityOptions::target(2f64.sqrt()));
     assert_eq!((r.vertices, r.triangles, r.patches), (6, 8, 1));
     assert_eq!(r.edges.count, 12);
     assert_eq!(r.edges.boundary, 0);
@@ -219,13 +213,7 @@ fn tetrahedron_exact() {
 #[test]
 fn unit_cube_volume_and_angles() {
     let m = cube();
-    let r = quality(
-        &m,
-        None,
-        &QualityOptions {
-            target_edge_mm: 1.0,
-        },
-    );
+    let r = quality(&m, None, &QualityOptions::target(1.0));
     assert!(close(r.labels[1].volume_mm3, 1.0, 1e-12));
     assert!(r.labels[0].unbounded);
     assert!(close(r.angles.min_deg, 45.0, 1e-9));
@@ -396,13 +384,7 @@ fn first_percentile_of_min_angles() {
 fn grid_valence_histograms_and_edge_range() {
     let m = 4;
     let g = grid(m);
-    let r = quality(
-        &g,
-        None,
-        &QualityOptions {
-            target_edge_mm: 1.0,
-        },
-    );
+    let r = quality(&g, None, &QualityOptions::target(1.0));
     // Interior: (m−1)² vertices of valence 6.
     assert_eq!(r.valence.interior, vec![0, 0, 0, 0, 0, 0, 9]);
     assert_eq!(r.valence.interior_6, 1.0);
@@ -499,13 +481,7 @@ fn empty_degenerate_and_huge_inputs_do_not_panic() {
         vec![DVec3::ZERO, DVec3::X, 2.0 * DVec3::X, DVec3::ZERO],
         vec![[0, 1, 2], [0, 1, 3], [0, 0, 0]],
     );
-    let r = quality(
-        &m,
-        Some(&m),
-        &QualityOptions {
-            target_edge_mm: f64::NAN,
-        },
-    );
+    let r = quality(&m, Some(&m), &QualityOptions::target(f64::NAN));
     assert_eq!(r.angles.degenerate, 3);
     assert_eq!(r.angles.min_deg, 0.0);
     assert_eq!(r.angles.max_deg, 180.0);
@@ -540,15 +516,7 @@ fn deterministic_across_thread_counts() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| {
-                quality(
-                    &q,
-                    Some(&r),
-                    &QualityOptions {
-                        target_edge_mm: 0.8,
-                    },
-                )
-            })
+            .install(|| quality(&q, Some(&r), &QualityOptions::target(0.8)))
     };
     let (a, b) = (run(1), run(2));
     assert_eq!(a, b);
@@ -561,22 +529,10 @@ fn deterministic_across_thread_counts() {
 #[test]
 fn sphere_against_finer_sphere() {
     let m = sphere(50, 100, 50.0, 0.0);
-    let r = quality(
-        &m,
-        Some(&m),
-        &QualityOptions {
-            target_edge_mm: 3.0,
-        },
-    );
+    let r = quality(&m, Some(&m), &QualityOptions::target(3.0));
     assert!(r.distance.as_ref().unwrap().hausdorff_mm < 1e-9);
     let reference = sphere(100, 100, 50.05, 0.001);
-    let r = quality(
-        &m,
-        Some(&reference),
-        &QualityOptions {
-            target_edge_mm: 3.0,
-        },
-    );
+    let r = quality(&m, Some(&reference), &QualityOptions::target(3.0));
     let d = r.distance.unwrap();
     assert!(
         d.hausdorff_mm > 0.04 && d.hausdorff_mm < 1.0,

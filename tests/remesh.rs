@@ -1,6 +1,9 @@
-//! Smoothing and remeshing: the validator's invariants, the quality figures of
-//! issue 5 on a noisy phantom, thin walls that survive, thread-count
-//! independence, and parameter errors.
+//! Smoothing and remeshing: the validator's invariants (no self-intersection
+//! ever), the quality figures on a noisy phantom, the shapes real
+//! segmentations have (a sulcus-like fold whose banks are a voxel apart, two
+//! parallel one-voxel walls, random volumes from blobs to pure noise) remeshed
+//! with almost nothing left as extracted, thin walls that survive,
+//! thread-count independence, and parameter errors.
 
 mod common;
 
@@ -11,7 +14,7 @@ use septa::mesh::quality::{QualityOptions, quality};
 use septa::mesh::validate::{Options, validate};
 use septa::phantom::{PhantomParams, heart};
 use septa::preprocess::preprocess;
-use septa::remesh::{RemeshParams, remesh};
+use septa::remesh::{RemeshParams, Remeshed, Sizing, remesh};
 use septa::volume::LabelVolume;
 
 fn extraction(vol: &LabelVolume, r: &Resolved) -> InterfaceMesh {
@@ -25,16 +28,30 @@ fn extraction(vol: &LabelVolume, r: &Resolved) -> InterfaceMesh {
     .unwrap()
 }
 
-/// `remesh` with default parameters but the target edge (mm).
-fn remeshed(mesh: &InterfaceMesh, target_edge: f64) -> septa::remesh::Remeshed {
-    remesh(
-        mesh,
-        &RemeshParams {
-            target_edge,
-            ..Default::default()
-        },
+/// The extraction of `vol` and its remeshing with default parameters but the
+/// largest target edge (mm), with the sizing field of the volume.
+fn remeshed(vol: &LabelVolume, r: &Resolved, target_edge: f64) -> (InterfaceMesh, Remeshed) {
+    let pre = preprocess(vol, r);
+    let mesh = extract(
+        &pre.refined,
+        label_infos(vol, None),
+        *vol.geometry(),
+        &ExtractOptions::default(),
     )
-    .unwrap()
+    .unwrap();
+    let params = RemeshParams {
+        target_edge,
+        ..Default::default()
+    };
+    let sizing = params.sizing(pre.refined.grid(), vol.geometry());
+    let out = remesh(&mesh, &sizing, &params).unwrap();
+    (mesh, out)
+}
+
+/// Share of the surface left as extracted where no operation could be done
+/// safely (small islands, kept by design, apart).
+fn stuck(out: &Remeshed) -> f64 {
+    out.kept_share - out.island_share
 }
 
 /// Every invariant but self-intersections (counted separately).
@@ -94,17 +111,10 @@ fn cube_remeshes_cleanly() {
         .collect();
     let vol = common::volume([n, n, n], &values);
     let r = Resolved::defaults(&vol);
-    let mesh = extraction(&vol, &r);
-    let out = remeshed(&mesh, 2.0);
+    let (mesh, out) = remeshed(&vol, &r, 2.0);
     assert_eq!(assert_valid_but_intersections("cube", &out.mesh), 0);
     assert!(out.mesh.triangle_count() * 3 < mesh.triangle_count());
-    let q = quality(
-        &out.mesh,
-        Some(&mesh),
-        &QualityOptions {
-            target_edge_mm: 2.0,
-        },
-    );
+    let q = quality(&out.mesh, Some(&mesh), &QualityOptions::target(2.0));
     assert!(q.labels[1].change.unwrap().abs() < 0.05, "{}", q.summary());
     assert!(
         q.distance.as_ref().unwrap().hausdorff_voxels <= 1.0,
@@ -135,29 +145,21 @@ fn thin_plate_survives() {
         .collect();
     let vol = common::volume([nx, ny, nz], &values);
     let r = Resolved::defaults(&vol);
-    let mesh = extraction(&vol, &r);
-    let out = remeshed(&mesh, 2.0);
+    let (mesh, out) = remeshed(&vol, &r, 2.0);
     assert_eq!(assert_valid_but_intersections("plate", &out.mesh), 0);
     assert_junctions_shared(&out.mesh);
-    let q = quality(
-        &out.mesh,
-        Some(&mesh),
-        &QualityOptions {
-            target_edge_mm: 2.0,
-        },
-    );
+    let q = quality(&out.mesh, Some(&mesh), &QualityOptions::target(2.0));
     let plate = q.labels.iter().find(|l| l.value == 2).unwrap();
     assert!(plate.change.unwrap().abs() < 0.10, "{}", q.summary());
 }
 
-/// The noisy 64³ phantom at L = 2 voxels: the figures of issue 5 as far as
-/// they hold at this size (structures only 2–4 L wide; see BENCHMARKS.md):
-/// every invariant including no self-intersections, junctions shared, ≥ 85 %
-/// of edges within [0.8 L, 1.33 L], ≥ 97.5 % of triangles with minimum angle
-/// ≥ 20°, Hausdorff ≤ 1 voxel, volume change ≤ 5 % for labels over 1000
-/// voxels. This seed leaves 9 crossing pairs after the first repair pass
-/// (three patches at a junction curve with small dihedral angles), so it
-/// also exercises the second attempt, with shorter edges around them.
+/// The noisy 64³ phantom at L = 2 voxels (structures only 2–4 L wide): every
+/// invariant including no self-intersections, junctions shared, ≥ 85 % of
+/// edges within [0.8 h, 1.33 h] of the local target, ≥ 97.5 % of triangles
+/// with minimum angle ≥ 20°, Hausdorff ≤ 1 voxel, volume change ≤ 5 % for
+/// labels over 1000 voxels, ≤ 1 % of the surface left as extracted. (This
+/// seed left 9 crossing pairs that the earlier remesher could only remove by
+/// remeshing everything again, then keeping the smoothed surface there.)
 #[test]
 fn noisy_phantom_quality() {
     let vol = heart(&PhantomParams {
@@ -168,8 +170,14 @@ fn noisy_phantom_quality() {
     })
     .unwrap();
     let r = Resolved::defaults(&vol);
+    let pre = preprocess(&vol, &r);
     let mesh = extraction(&vol, &r);
-    let out = remeshed(&mesh, 2.0);
+    let params = RemeshParams {
+        target_edge: 2.0,
+        ..Default::default()
+    };
+    let sizing = params.sizing(pre.refined.grid(), vol.geometry());
+    let out = remesh(&mesh, &sizing, &params).unwrap();
     let bad = assert_valid_but_intersections("noisy phantom", &out.mesh);
     assert_junctions_shared(&out.mesh);
     let q = quality(
@@ -177,15 +185,12 @@ fn noisy_phantom_quality() {
         Some(&mesh),
         &QualityOptions {
             target_edge_mm: 2.0,
+            local: Some(&sizing),
         },
     );
     let s = q.summary();
     assert_eq!(bad, 0, "{s}");
-    assert_eq!(out.intersections_left, 0);
-    assert!(
-        out.attempts > 1,
-        "the fallback was not needed: find another seed"
-    );
+    assert!(stuck(&out) <= 0.01, "{} kept: {s}", out.kept_share);
     assert!(q.edges.within_range >= 0.85, "{s}");
     assert!(q.angles.min_ge_20 >= 0.975, "{s}");
     assert!(q.distance.as_ref().unwrap().hausdorff_voxels <= 1.0, "{s}");
@@ -224,16 +229,14 @@ fn islands_stay_outward() {
     }
     let vol = common::volume([n, n, n], &values);
     let r = Resolved::defaults(&vol);
-    let mesh = extraction(&vol, &r);
     for target_edge in [1.5, 2.0, 4.0] {
-        let out = remeshed(&mesh, target_edge);
+        let (_, out) = remeshed(&vol, &r, target_edge);
         let name = format!("islands, L = {target_edge}");
         assert_eq!(
             assert_valid_but_intersections(&name, &out.mesh),
             0,
             "{name}"
         );
-        assert_eq!(out.intersections_left, 0, "{name}");
     }
 }
 
@@ -260,8 +263,7 @@ fn lenses_on_an_interface_do_not_cross() {
             values[(z * n + j) * n + i] = 7;
         }
         let vol = common::volume([n, n, n], &values);
-        let mesh = extraction(&vol, &Resolved::defaults(&vol));
-        let out = remeshed(&mesh, target_edge);
+        let (_, out) = remeshed(&vol, &Resolved::defaults(&vol), target_edge);
         let name = format!("lenses, shift {shift}, L = {target_edge}");
         total += assert_valid_but_intersections(&name, &out.mesh);
         assert_junctions_shared(&out.mesh);
@@ -271,9 +273,10 @@ fn lenses_on_an_interface_do_not_cross() {
 
 /// Random label volumes, from pure noise to blobs, remeshed at several
 /// target edges: every invariant holds, including no self-intersections
-/// (where the local repair cannot remove a crossing, the remesher tries
-/// shorter edges there, then keeps the smoothed surface), and junction
-/// curves stay shared.
+/// (every operation is checked against every other triangle), junction
+/// curves stay shared, and at most 1 % of the surface is left as extracted
+/// outside small islands. (The earlier remesher, repairing crossings after
+/// the fact, kept nearly everything on the noisiest of these.)
 #[test]
 fn random_volumes_remesh_without_crossings() {
     let mut x = 0x9e37_79b9_7f4a_7c15u64;
@@ -301,9 +304,8 @@ fn random_volumes_remesh_without_crossings() {
             })
             .collect();
         let vol = common::volume([n, n, n], &values);
-        let mesh = extraction(&vol, &Resolved::defaults(&vol));
         for target_edge in [1.5, 3.0] {
-            let out = remeshed(&mesh, target_edge);
+            let (_, out) = remeshed(&vol, &Resolved::defaults(&vol), target_edge);
             let name =
                 format!("case {case}: {n}³, {labels} labels, cell {cell}, L = {target_edge}");
             assert_eq!(
@@ -311,8 +313,13 @@ fn random_volumes_remesh_without_crossings() {
                 0,
                 "{name}"
             );
-            assert_eq!(out.intersections_left, 0, "{name}");
             assert_junctions_shared(&out.mesh);
+            assert!(
+                stuck(&out) <= 0.01,
+                "{name}: {} kept ({} islands)",
+                out.kept_share,
+                out.island_share
+            );
         }
     }
 }
@@ -328,13 +335,12 @@ fn independent_of_thread_count() {
     })
     .unwrap();
     let r = Resolved::defaults(&vol);
-    let mesh = extraction(&vol, &r);
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap();
-        pool.install(|| remeshed(&mesh, 2.0).mesh)
+        pool.install(|| remeshed(&vol, &r, 2.0).1.mesh)
     };
     let (a, b) = (run(1), run(3));
     assert_eq!(a.triangles, b.triangles);
@@ -359,8 +365,123 @@ fn bad_parameters_are_errors() {
             max_displacement: -1.0,
             ..Default::default()
         },
+        RemeshParams {
+            min_edge: Some(-0.5),
+            ..Default::default()
+        },
     ] {
-        let e = remesh(&mesh, &p).err().expect("an error");
+        let e = remesh(&mesh, &Sizing::uniform(2.0), &p)
+            .err()
+            .expect("an error");
         assert!(e.to_string().contains("must be"), "{e}");
+    }
+}
+
+/// A sulcus-like fold, as in a cortical grey-matter map: a grey sheet two
+/// voxels thick over a white block, folded down into a slot so that its two
+/// banks face each other across one voxel of the outside (CSF) label, at
+/// several targets up to 3 voxels. No crossings, ≤ 1 % left as extracted,
+/// both banks kept apart (the gap's label keeps its volume within 30 %).
+/// The earlier remesher, with one uniform target, crossed the banks and had
+/// to keep the smoothed extraction around them.
+#[test]
+fn fold_with_banks_one_voxel_apart() {
+    let n = 32usize;
+    let values: Vec<i64> = (0..n * n * n)
+        .map(|i| {
+            let (x, y, z) = (i % n, i / n % n, i / (n * n));
+            let inside =
+                (2..n - 2).contains(&x) && (2..n - 2).contains(&y) && (2..n - 6).contains(&z);
+            if !inside {
+                return 0;
+            }
+            // the slot x 12..19, z 6.. ; its grey lining two voxels thick, its
+            // middle column x = 15 (one voxel) the outside label
+            let slot = (12..19).contains(&x) && z >= 6;
+            if slot {
+                if x == 15 && z >= 8 { 0 } else { 1 }
+            } else if z >= n - 8 {
+                1
+            } else {
+                2
+            }
+        })
+        .collect();
+    let vol = common::volume([n, n, n], &values);
+    let r = Resolved::defaults(&vol);
+    for target_edge in [2.0, 3.0] {
+        let (mesh, out) = remeshed(&vol, &r, target_edge);
+        let name = format!("fold, L = {target_edge}");
+        assert_eq!(
+            assert_valid_but_intersections(&name, &out.mesh),
+            0,
+            "{name}"
+        );
+        assert_junctions_shared(&out.mesh);
+        assert!(stuck(&out) <= 0.01, "{name}: {} kept", out.kept_share);
+        let q = quality(&out.mesh, Some(&mesh), &QualityOptions::target(target_edge));
+        for l in &q.labels {
+            if let Some(c) = l.change {
+                assert!(
+                    c.abs() <= 0.3,
+                    "{name}: label {} changed {c}: {}",
+                    l.value,
+                    q.summary()
+                );
+            }
+        }
+        assert!(
+            out.mesh.triangle_count() * 2 < mesh.triangle_count(),
+            "{name}: remeshed coarser"
+        );
+    }
+}
+
+/// Two parallel walls one voxel thick (labels 2 and 3, one voxel of label 1
+/// between them), with steps in them, across a block of label 1: no
+/// crossings, ≤ 1 % left as extracted, both walls keep their volume within
+/// 30 %.
+#[test]
+fn two_parallel_one_voxel_walls() {
+    let (nx, ny, nz) = (24usize, 28usize, 28usize);
+    let values: Vec<i64> = (0..nx * ny * nz)
+        .map(|i| {
+            let (x, y, z) = (i % nx, i / nx % ny, i / (nx * ny));
+            if !(2..nx - 2).contains(&x) || !(2..ny - 2).contains(&y) || !(2..nz - 2).contains(&z) {
+                return 0;
+            }
+            let step = usize::from(y >= 14) + usize::from(z >= 10);
+            let wall = 9 + step;
+            if x == wall {
+                2
+            } else if x == wall + 2 {
+                3
+            } else {
+                1
+            }
+        })
+        .collect();
+    let vol = common::volume([nx, ny, nz], &values);
+    let r = Resolved::defaults(&vol);
+    for target_edge in [2.0, 4.0] {
+        let (mesh, out) = remeshed(&vol, &r, target_edge);
+        let name = format!("walls, L = {target_edge}");
+        assert_eq!(
+            assert_valid_but_intersections(&name, &out.mesh),
+            0,
+            "{name}"
+        );
+        assert_junctions_shared(&out.mesh);
+        assert!(stuck(&out) <= 0.01, "{name}: {} kept", out.kept_share);
+        let q = quality(&out.mesh, Some(&mesh), &QualityOptions::target(target_edge));
+        for value in [2, 3] {
+            let l = q.labels.iter().find(|l| l.value == value).unwrap();
+            let c = l.change.unwrap();
+            assert!(
+                c.abs() <= 0.3,
+                "{name}: wall {value} changed {c}: {}",
+                q.summary()
+            );
+        }
     }
 }

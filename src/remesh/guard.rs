@@ -4,26 +4,30 @@
 //! other. Since the smoothed extraction the remesher starts from has no
 //! crossing, none can ever appear: no repair afterwards, no fallback.
 //!
-//! The guard is a spatial hash of the current triangles (cells of about the
-//! mean edge length, each listing the faces whose boxes overlap it), updated
-//! with every accepted operation, plus fixed *obstacles*: triangles beside the
-//! region being remeshed that no operation here may change. Vertices are
-//! identified by keys, so that triangles sharing a vertex or an edge (in any
-//! patch) are tested as neighbours, not as crossings.
+//! The guard is a hierarchy of loose uniform grids over the region being
+//! remeshed (cells doubling in size from level to level): every face (and
+//! every fixed *obstacle*: a triangle beside the region that no operation
+//! here may change) is listed once, at the finest level whose cells are at
+//! least twice its half box, in the cell holding the centre of its box, on
+//! an intrusive doubly linked list, so that registering and unregistering a
+//! face are O(1). A query looks, at every level that holds entries, at the
+//! cells within half a cell of its own box, and tests the boxes (kept per
+//! face, in `f32` rounded outward) before the triangles. Vertices
+//! are identified by keys, so that triangles sharing a vertex or an edge (in
+//! any patch) are tested as neighbours, not as crossings.
 
 use glam::DVec3;
-use hashbrown::HashMap;
 
 use super::halfedge::{HalfedgeMesh, NONE};
 use super::isotropic::PatchState;
-use crate::geom::predicates::triangles_cross;
+use crate::geom::predicates::{f32_down, f32_up, triangles_cross};
 
 /// A vertex's identity: equal keys are the same vertex.
 pub(super) type Key = u64;
 
 /// Keys of vertices that exist only in one patch's mesh (made by splits):
 /// the patch and local id, with this bit set.
-const LOCAL_KEY: Key = 1 << 63;
+pub(super) const LOCAL_KEY: Key = 1 << 63;
 
 /// The key of local vertex `v` of patch `p`: its tag (shared by every copy
 /// of a vertex, in every patch), or, for a vertex a split made, the patch
@@ -71,75 +75,170 @@ impl Tri {
     }
 }
 
-/// Faces in a cell: `patch << 32 | face`, or an obstacle (`OBSTACLE << 32 | index`).
-type Entry = u64;
-const OBSTACLE: u32 = u32::MAX;
-
-/// An inclusive range of cells.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct Cells {
-    lo: [i32; 3],
-    hi: [i32; 3],
+/// A box in `f32`, rounded outward.
+#[derive(Clone, Copy, Debug)]
+struct Box32 {
+    lo: [f32; 3],
+    hi: [f32; 3],
 }
 
-const UNREGISTERED: Cells = Cells {
-    lo: [1, 1, 1],
-    hi: [0, 0, 0],
-};
+impl Box32 {
+    #[inline]
+    fn outward((lo, hi): (DVec3, DVec3)) -> Self {
+        Box32 {
+            lo: [f32_down(lo.x), f32_down(lo.y), f32_down(lo.z)],
+            hi: [f32_up(hi.x), f32_up(hi.y), f32_up(hi.z)],
+        }
+    }
 
-/// Cells per axis a box may span before it is registered as one huge box
-/// (see [`Guard::cells_of`]).
-const MAX_SPAN: i32 = 64;
+    #[inline]
+    fn overlaps(&self, o: &Box32) -> bool {
+        (self.lo[0] <= o.hi[0])
+            & (o.lo[0] <= self.hi[0])
+            & (self.lo[1] <= o.hi[1])
+            & (o.lo[1] <= self.hi[1])
+            & (self.lo[2] <= o.hi[2])
+            & (o.lo[2] <= self.hi[2])
+    }
+}
 
-/// The spatial hash of current triangles and obstacles.
-pub(super) struct Guard {
+/// Most cells the finest grid may have.
+const MAX_CELLS: usize = 1 << 22;
+
+/// One level of the hierarchy: a grid of lists.
+struct Level {
+    cell: f64,
     inv: f64,
-    cells: HashMap<u64, Vec<Entry>>,
-    /// Faces whose box spans more than [`MAX_SPAN`] cells: tested by every query.
-    huge: Vec<Entry>,
-    /// Per patch and face: the cells it is registered in.
-    registered: Vec<Vec<Cells>>,
-    obstacles: Vec<Tri>,
-    /// Per patch and face, and per obstacle: the last query that saw it.
-    seen: Vec<Vec<u32>>,
-    seen_obstacle: Vec<u32>,
+    dims: [usize; 3],
+    /// First entry of each cell's list (or [`NONE`]).
+    head: Vec<u32>,
+    /// Entries listed here.
+    count: usize,
+}
+
+impl Level {
+    fn new(ext: DVec3, cell: f64) -> Self {
+        let dims = ext.to_array().map(|e| (e / cell).floor() as usize + 1);
+        Level {
+            cell,
+            inv: 1.0 / cell,
+            dims,
+            head: vec![NONE; dims.iter().product()],
+            count: 0,
+        }
+    }
+
+    /// The cell holding point `p` (offset from the grid's corner; clamped).
+    #[inline]
+    fn cell_at(&self, d: DVec3) -> [usize; 3] {
+        let q = d * self.inv;
+        let c = |k: usize| {
+            let x = q[k];
+            if x.is_nan() || x <= 0.0 {
+                0
+            } else {
+                (x as usize).min(self.dims[k] - 1)
+            }
+        };
+        [c(0), c(1), c(2)]
+    }
+
+    #[inline]
+    fn index(&self, c: [usize; 3]) -> usize {
+        (c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]
+    }
+}
+
+/// The loose grids of current triangles and obstacles.
+pub(super) struct Guard {
+    lo: DVec3,
+    levels: Vec<Level>,
+    // per entry
+    next: Vec<u32>,
+    prev: Vec<u32>,
+    /// Level and cell of each listed entry (`NONE` cell: not listed).
+    level_of: Vec<u8>,
+    cell_of: Vec<u32>,
+    boxes: Vec<Box32>,
+    /// The triangle of each entry as it was registered (faces change only
+    /// after they are unregistered).
+    tris: Vec<Tri>,
+    seen: Vec<u32>,
+    /// Per patch and face: its entry (or [`NONE`]).
+    entry: Vec<Vec<u32>>,
     query: u32,
+    made_boxes: Vec<Box32>,
     /// New triangles must lie within this box (where the obstacles are complete).
     trusted: (DVec3, DVec3),
 }
 
 impl Guard {
-    /// A guard over every live face of `patches`
-    /// and the `obstacles`, with cells of `cell` mm; operations may make
-    /// triangles only within `trusted`.
+    /// A guard over every live face of `patches` and the `obstacles`, with
+    /// finest cells of about `cell` mm; operations may make triangles only
+    /// within `trusted`.
     pub(super) fn new(
         cell: f64,
         patches: &[PatchState],
         obstacles: Vec<Tri>,
         trusted: (DVec3, DVec3),
     ) -> Self {
+        // the grids cover every vertex now, within the trusted box
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        for st in patches {
+            for v in st.mesh.vertices() {
+                lo = lo.min(st.mesh.pos[v as usize]);
+                hi = hi.max(st.mesh.pos[v as usize]);
+            }
+        }
+        for t in &obstacles {
+            let (a, b) = t.bounds();
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        if !(lo.is_finite() && hi.is_finite()) {
+            lo = DVec3::ZERO;
+            hi = DVec3::ZERO;
+        }
+        lo = lo.max(trusted.0);
+        hi = hi.min(trusted.1).max(lo);
+        let ext = (hi - lo).max(DVec3::splat(1e-9));
+        let mut cell = cell.max(ext.max_element() * 1e-6).max(1e-9);
+        let cells = |c: f64| {
+            ext.to_array()
+                .iter()
+                .map(|e| (e / c).floor() as usize + 1)
+                .product::<usize>()
+        };
+        while cells(cell) > MAX_CELLS {
+            cell *= 1.26;
+        }
+        let mut levels = vec![Level::new(ext, cell)];
+        while levels.last().is_some_and(|l| l.dims.iter().any(|&d| d > 1)) {
+            let c = 2.0 * levels.last().expect("a level").cell;
+            levels.push(Level::new(ext, c));
+        }
         let mut g = Guard {
-            inv: 1.0 / cell,
-            cells: HashMap::new(),
-            huge: Vec::new(),
-            registered: patches
+            lo,
+            levels,
+            next: Vec::new(),
+            prev: Vec::new(),
+            level_of: Vec::new(),
+            cell_of: Vec::new(),
+            boxes: Vec::new(),
+            tris: Vec::new(),
+            seen: Vec::new(),
+            entry: patches
                 .iter()
-                .map(|st| vec![UNREGISTERED; st.mesh.face_slots()])
+                .map(|st| vec![NONE; st.mesh.face_slots()])
                 .collect(),
-            seen: patches
-                .iter()
-                .map(|st| vec![0; st.mesh.face_slots()])
-                .collect(),
-            seen_obstacle: vec![0; obstacles.len()],
-            obstacles: Vec::new(),
             query: 0,
+            made_boxes: Vec::new(),
             trusted,
         };
-        for (i, t) in obstacles.iter().enumerate() {
-            let c = g.cells_of(t.bounds());
-            g.add(c, (OBSTACLE as Entry) << 32 | i as Entry);
+        for t in obstacles {
+            g.add(t);
         }
-        g.obstacles = obstacles;
         for (p, st) in patches.iter().enumerate() {
             for f in 0..st.mesh.face_slots() as u32 {
                 if !st.mesh.face_dead(f) {
@@ -150,104 +249,102 @@ impl Guard {
         g
     }
 
-    #[inline]
-    fn cell_key(c: [i32; 3]) -> u64 {
-        const OFF: i64 = 1 << 20;
-        let k = c.map(|x| (x as i64 + OFF) as u64 & ((1 << 21) - 1));
-        k[0] | k[1] << 21 | k[2] << 42
+    /// Lists a new entry for triangle `t`.
+    fn add(&mut self, t: Tri) -> u32 {
+        let e = self.next.len() as u32;
+        self.next.push(NONE);
+        self.prev.push(NONE);
+        self.level_of.push(0);
+        self.cell_of.push(NONE);
+        self.boxes.push(Box32::outward(t.bounds()));
+        self.tris.push(t);
+        self.seen.push(0);
+        self.link(e, t);
+        e
     }
 
-    /// The cells a box overlaps (every query cell of a box spanning more
-    /// than [`MAX_SPAN`] per axis would be too many: such a box goes to the
-    /// `huge` list, marked by an empty range with `lo` = [−1; 3]).
-    #[inline]
-    fn cells_of(&self, (lo, hi): (DVec3, DVec3)) -> Cells {
-        let f = |x: f64| {
-            let c = (x * self.inv).floor();
-            c.clamp(-(1 << 20) as f64 + 1.0, (1 << 20) as f64 - 2.0) as i32
-        };
-        let c = Cells {
-            lo: [f(lo.x), f(lo.y), f(lo.z)],
-            hi: [f(hi.x), f(hi.y), f(hi.z)],
-        };
-        if (0..3).any(|a| c.hi[a] - c.lo[a] >= MAX_SPAN) || lo.is_nan() || hi.is_nan() {
-            Cells {
-                lo: [-1; 3],
-                hi: [-2; 3],
-            }
+    /// Puts entry `e` (triangle `t`) on a list: at the finest level whose
+    /// cells are at least twice its half box, in the cell of its centre.
+    fn link(&mut self, e: u32, t: Tri) {
+        let b = t.bounds();
+        let half = ((b.1 - b.0) * 0.5).max_element();
+        let top = self.levels.len() - 1;
+        let level = if half.is_finite() {
+            self.levels
+                .iter()
+                .position(|l| 2.0 * half <= l.cell)
+                .unwrap_or(top)
         } else {
-            c
+            top
+        };
+        let l = &mut self.levels[level];
+        let c = l.index(l.cell_at((b.0 + b.1) * 0.5 - self.lo)) as u32;
+        let first = l.head[c as usize];
+        l.head[c as usize] = e;
+        l.count += 1;
+        self.next[e as usize] = first;
+        self.prev[e as usize] = NONE;
+        if first != NONE {
+            self.prev[first as usize] = e;
         }
+        self.level_of[e as usize] = level as u8;
+        self.cell_of[e as usize] = c;
+        self.boxes[e as usize] = Box32::outward(b);
+        self.tris[e as usize] = t;
     }
 
-    fn add(&mut self, c: Cells, e: Entry) {
-        if c.lo == [-1; 3] && c.hi == [-2; 3] {
-            self.huge.push(e);
+    /// Takes entry `e` off its cell's list.
+    fn unlink(&mut self, e: u32) {
+        let c = self.cell_of[e as usize];
+        if c == NONE {
             return;
         }
-        for z in c.lo[2]..=c.hi[2] {
-            for y in c.lo[1]..=c.hi[1] {
-                for x in c.lo[0]..=c.hi[0] {
-                    self.cells
-                        .entry(Self::cell_key([x, y, z]))
-                        .or_default()
-                        .push(e);
-                }
-            }
+        let l = &mut self.levels[self.level_of[e as usize] as usize];
+        let (n, p) = (self.next[e as usize], self.prev[e as usize]);
+        if p != NONE {
+            self.next[p as usize] = n;
+        } else {
+            l.head[c as usize] = n;
         }
+        if n != NONE {
+            self.prev[n as usize] = p;
+        }
+        l.count -= 1;
+        self.cell_of[e as usize] = NONE;
     }
 
     /// Registers face `f` of patch `p` (`m` = its mesh) as it is now.
     pub(super) fn insert(&mut self, m: &HalfedgeMesh, p: u32, f: u32) {
         let pu = p as usize;
-        if self.registered[pu].len() <= f as usize {
-            self.registered[pu].resize(m.face_slots(), UNREGISTERED);
-            self.seen[pu].resize(m.face_slots(), 0);
+        if self.entry[pu].len() <= f as usize {
+            self.entry[pu].resize(m.face_slots(), NONE);
         }
-        debug_assert_eq!(self.registered[pu][f as usize], UNREGISTERED);
-        let c = self.cells_of(Tri::of_face(m, p, f).bounds());
-        self.registered[pu][f as usize] = c;
-        self.add(c, (p as Entry) << 32 | f as Entry);
+        let t = Tri::of_face(m, p, f);
+        match self.entry[pu][f as usize] {
+            NONE => {
+                let e = self.add(t);
+                self.entry[pu][f as usize] = e;
+            }
+            e => {
+                debug_assert_eq!(self.cell_of[e as usize], NONE, "registered twice");
+                self.link(e, t);
+            }
+        }
     }
 
     /// Unregisters face `f` of patch `p` (before it changes or dies).
     pub(super) fn remove(&mut self, p: u32, f: u32) {
-        let Some(c) = self.registered[p as usize].get_mut(f as usize) else {
-            return;
-        };
-        let c = std::mem::replace(c, UNREGISTERED);
-        if c == UNREGISTERED {
-            return;
-        }
-        let e = (p as Entry) << 32 | f as Entry;
-        if c.lo == [-1; 3] && c.hi == [-2; 3] {
-            if let Some(i) = self.huge.iter().position(|&x| x == e) {
-                self.huge.swap_remove(i);
-            }
-            return;
-        }
-        for z in c.lo[2]..=c.hi[2] {
-            for y in c.lo[1]..=c.hi[1] {
-                for x in c.lo[0]..=c.hi[0] {
-                    if let Some(list) = self.cells.get_mut(&Self::cell_key([x, y, z])) {
-                        if let Some(i) = list.iter().position(|&x| x == e) {
-                            list.swap_remove(i);
-                        }
-                    }
-                }
+        if let Some(&e) = self.entry[p as usize].get(f as usize) {
+            if e != NONE {
+                self.unlink(e);
             }
         }
     }
 
     /// Whether the triangles `made` cross neither each other nor anything
     /// registered except the faces `replaced` (patch, face), and lie within
-    /// the trusted box. `patches[p]` is patch `p` as it is now.
-    pub(super) fn clear(
-        &mut self,
-        patches: &[PatchState],
-        made: &[Tri],
-        replaced: &[(u32, u32)],
-    ) -> bool {
+    /// the trusted box.
+    pub(super) fn clear(&mut self, made: &[Tri], replaced: &[(u32, u32)]) -> bool {
         if made.is_empty() {
             return true;
         }
@@ -257,10 +354,9 @@ impl Guard {
             lo = lo.min(l);
             hi = hi.max(h);
         }
-        if lo.cmplt(self.trusted.0).any()
+        if !(lo.is_finite() && hi.is_finite())
+            || lo.cmplt(self.trusted.0).any()
             || hi.cmpgt(self.trusted.1).any()
-            || !lo.is_finite()
-            || !hi.is_finite()
         {
             return false;
         }
@@ -273,69 +369,52 @@ impl Guard {
         }
         self.query = self.query.wrapping_add(1);
         if self.query == 0 {
-            // the stamps wrapped: start them afresh
-            self.seen.iter_mut().for_each(|s| s.fill(0));
-            self.seen_obstacle.fill(0);
+            self.seen.fill(0);
             self.query = 1;
         }
         let q = self.query;
         for &(p, f) in replaced {
-            if let Some(s) = self.seen[p as usize].get_mut(f as usize) {
-                *s = q;
-            }
-        }
-        let bounds: Vec<(DVec3, DVec3)> = made.iter().map(|t| t.bounds()).collect();
-        let c = self.cells_of((lo, hi));
-        let hit = |e: Entry, seen: &mut Vec<Vec<u32>>, seen_obstacle: &mut Vec<u32>| -> bool {
-            let (p, f) = ((e >> 32) as u32, e as u32);
-            let t = if p == OBSTACLE {
-                let s = &mut seen_obstacle[f as usize];
-                if *s == q {
-                    return false;
-                }
-                *s = q;
-                self.obstacles[f as usize]
-            } else {
-                let s = &mut seen[p as usize][f as usize];
-                if *s == q {
-                    return false;
-                }
-                *s = q;
-                Tri::of_face(&patches[p as usize].mesh, p, f)
-            };
-            let (tl, th) = t.bounds();
-            if tl.cmpgt(hi).any() || th.cmplt(lo).any() {
-                return false;
-            }
-            made.iter().zip(&bounds).any(|(s, b)| {
-                !(tl.cmpgt(b.1).any() || th.cmplt(b.0).any())
-                    && triangles_cross(&s.p, &s.k, &t.p, &t.k)
-            })
-        };
-        let (seen, seen_obstacle) = (&mut self.seen, &mut self.seen_obstacle);
-        for &e in &self.huge {
-            if hit(e, seen, seen_obstacle) {
-                return false;
-            }
-        }
-        let whole = c.lo == [-1; 3] && c.hi == [-2; 3];
-        if whole {
-            // a query box spanning too many cells: every registered face
-            for list in self.cells.values() {
-                for &e in list {
-                    if hit(e, seen, seen_obstacle) {
-                        return false;
-                    }
+            if let Some(&e) = self.entry[p as usize].get(f as usize) {
+                if e != NONE {
+                    self.seen[e as usize] = q;
                 }
             }
-            return true;
         }
-        for z in c.lo[2]..=c.hi[2] {
-            for y in c.lo[1]..=c.hi[1] {
-                for x in c.lo[0]..=c.hi[0] {
-                    if let Some(list) = self.cells.get(&Self::cell_key([x, y, z])) {
-                        for &e in list {
-                            if hit(e, seen, seen_obstacle) {
+        let mut made_boxes = std::mem::take(&mut self.made_boxes);
+        made_boxes.clear();
+        made_boxes.extend(made.iter().map(|t| Box32::outward(t.bounds())));
+        let clear = self.scan(made, &made_boxes, lo, hi, q);
+        self.made_boxes = made_boxes;
+        clear
+    }
+
+    /// The cells near [lo, hi]: whether no entry not seen by query `q`
+    /// crosses a triangle of `made`.
+    fn scan(&self, made: &[Tri], made_boxes: &[Box32], lo: DVec3, hi: DVec3, q: u32) -> bool {
+        let query_box = Box32::outward((lo, hi));
+        for l in &self.levels {
+            if l.count == 0 {
+                continue;
+            }
+            // entries are listed by the centre of their box, at most half a cell away
+            let r = DVec3::splat(0.5 * l.cell);
+            let (a, b) = (l.cell_at(lo - r - self.lo), l.cell_at(hi + r - self.lo));
+            for z in a[2]..=b[2] {
+                for y in a[1]..=b[1] {
+                    let row = (z * l.dims[1] + y) * l.dims[0];
+                    for x in a[0]..=b[0] {
+                        let mut e = l.head[row + x];
+                        while e != NONE {
+                            let cur = e as usize;
+                            e = self.next[cur];
+                            if self.seen[cur] == q || !self.boxes[cur].overlaps(&query_box) {
+                                continue;
+                            }
+                            let t = &self.tris[cur];
+                            let tb = self.boxes[cur];
+                            if made.iter().zip(made_boxes).any(|(s, sb)| {
+                                sb.overlaps(&tb) && triangles_cross(&s.p, &s.k, &t.p, &t.k)
+                            }) {
                                 return false;
                             }
                         }

@@ -133,6 +133,8 @@ pub(super) struct Remesher<'r> {
     pub(super) guard: Guard,
     made: Vec<Tri>,
     replaced: Vec<(u32, u32)>,
+    /// Debug counters: guard queries, made triangles, guard ns, refusals; then per pass ns: curves, split, collapse, flip, relax
+    pub(super) stats: [u64; 10],
 }
 
 /// What [`Remesher::new`] is built from: the region's vertices (ids are
@@ -195,6 +197,7 @@ impl<'r> Remesher<'r> {
             guard,
             made: Vec::new(),
             replaced: Vec::new(),
+            stats: [0; 10],
         };
         r.rebuild_copies();
         r
@@ -216,9 +219,11 @@ impl<'r> Remesher<'r> {
 
     /// One curve pass and one pass over every patch.
     pub(super) fn iterate(&mut self) {
+        let t = std::time::Instant::now();
         for c in 0..self.curves.len() {
             self.remesh_curve(c);
         }
+        self.stats[4] += t.elapsed().as_nanos() as u64;
         for p in 0..self.patches.len() {
             self.remesh_patch(p as u32);
         }
@@ -229,7 +234,13 @@ impl<'r> Remesher<'r> {
     /// Whether the triangles in `self.made` may replace those in
     /// `self.replaced` (the guard).
     fn guard_clear(&mut self) -> bool {
-        self.guard.clear(&self.patches, &self.made, &self.replaced)
+        self.stats[0] += 1;
+        self.stats[1] += self.made.len() as u64;
+        let t = std::time::Instant::now();
+        let ok = self.guard.clear(&self.made, &self.replaced);
+        self.stats[2] += t.elapsed().as_nanos() as u64;
+        self.stats[3] += u64::from(!ok);
+        ok
     }
 
     /// Before faces change: takes them out of the guard.
@@ -328,20 +339,25 @@ impl<'r> Remesher<'r> {
         if at != m.pos[v1 as usize] {
             Self::fan_moved(m, p, v1, at, k1, v0, &mut made);
         }
+        // the faces that change: those around v0 (the two on the edge die),
+        // and those around v1 if it moves; the rest around v1 stay and are
+        // tested like any other face
         Self::faces_around(m, p, v0, &mut replaced);
-        Self::faces_around(m, p, v1, &mut replaced);
+        if at != m.pos[v1 as usize] {
+            Self::faces_around(m, p, v1, &mut replaced);
+        }
         self.made = made;
         self.replaced = replaced;
         if !self.guard_clear() {
             return false;
         }
-        let replaced = std::mem::take(&mut self.replaced);
-        self.unregister(&replaced);
+        let changed = std::mem::take(&mut self.replaced);
+        self.unregister(&changed);
         let m = &mut self.patches[p as usize].mesh;
         m.pos[v1 as usize] = at;
         m.collapse(h);
-        self.register(&replaced);
-        self.replaced = replaced;
+        self.register(&changed);
+        self.replaced = changed;
         true
     }
 
@@ -371,52 +387,26 @@ impl<'r> Remesher<'r> {
         true
     }
 
-    /// Splits the edge of `h` in patch `p` at `at` (its midpoint: the
-    /// triangles keep their shape), if the guard allows it; returns the new
-    /// vertex.
-    fn guarded_split(&mut self, p: u32, h: u32, at: DVec3) -> Option<u32> {
-        let mut made = std::mem::take(&mut self.made);
-        made.clear();
+    /// Splits the edge of `h` in patch `p` at its midpoint; returns the new
+    /// vertex. The two new triangles of each side tile the old one (same
+    /// plane, same points), so a split cannot make a crossing: the guard
+    /// only learns of it.
+    fn split_at_midpoint(&mut self, p: u32, h: u32) -> u32 {
         let m = &self.patches[p as usize].mesh;
-        let new_key = vertex_key_of_next(m, p);
-        let mut faces = [(p, NONE); 2];
-        for (i, g) in [h, h ^ 1].into_iter().enumerate() {
-            if m.is_boundary_halfedge(g) {
-                continue;
-            }
-            let (a, b, c) = (m.from(g), m.to(g), m.to(m.next(g)));
-            let (pa, pb, pc) = (m.pos[a as usize], m.pos[b as usize], m.pos[c as usize]);
-            let (ka, kb, kc) = (
-                vertex_key(m, p, a),
-                vertex_key(m, p, b),
-                vertex_key(m, p, c),
-            );
-            made.push(Tri {
-                p: [pa, at, pc],
-                k: [ka, new_key, kc],
-            });
-            made.push(Tri {
-                p: [at, pb, pc],
-                k: [new_key, kb, kc],
-            });
-            faces[i] = (p, m.face(g));
-        }
-        self.made = made;
-        self.replaced.clear();
-        self.replaced.extend(faces.iter().filter(|f| f.1 != NONE));
-        if !self.guard_clear() {
-            return None;
-        }
-        let old: Vec<(u32, u32)> = self.replaced.clone();
+        let at = (m.pos[m.from(h) as usize] + m.pos[m.to(h) as usize]) * 0.5;
+        let old: Vec<(u32, u32)> = [h, h ^ 1]
+            .into_iter()
+            .filter(|&g| !m.is_boundary_halfedge(g))
+            .map(|g| (p, m.face(g)))
+            .collect();
         self.unregister(&old);
         let m = &mut self.patches[p as usize].mesh;
         let before = m.face_slots() as u32;
         let v = m.split(h, at);
-        let after = m.face_slots() as u32;
         let mut changed = old;
-        changed.extend((before..after).map(|f| (p, f)));
+        changed.extend((before..m.face_slots() as u32).map(|f| (p, f)));
         self.register(&changed);
-        Some(v)
+        v
     }
 
     // ---- curves ----------------------------------------------------------
@@ -477,9 +467,9 @@ impl<'r> Remesher<'r> {
         true
     }
 
-    /// Splits edge `i` of curve `c` at its chord midpoint (no triangle changes
-    /// shape) in every patch that shares it, if the guard allows it; returns
-    /// the new junction vertex.
+    /// Splits edge `i` of curve `c` at its chord midpoint in every patch
+    /// that shares it (no triangle changes shape: see
+    /// [`Remesher::split_at_midpoint`]); returns the new junction vertex.
     fn split_curve_edge_at_chord(&mut self, c: usize, i: usize) -> Option<u32> {
         let (u, v) = self.curve_edge_at(c, i);
         let mid = (self.pos[u as usize] + self.pos[v as usize]) * 0.5;
@@ -488,35 +478,14 @@ impl<'r> Remesher<'r> {
             return None;
         }
         let new = self.pos.len() as u32;
-        let mut made = std::mem::take(&mut self.made);
-        made.clear();
-        self.replaced.clear();
-        for &(p, h) in &sites {
-            let m = &self.patches[p as usize].mesh;
-            // the face on the patch's side of the boundary edge
-            let g = if m.is_boundary_halfedge(h) { h ^ 1 } else { h };
-            let (a, b, w) = (m.from(g), m.to(g), m.to(m.next(g)));
-            let (pa, pb, pw) = (m.pos[a as usize], m.pos[b as usize], m.pos[w as usize]);
-            let (ka, kb, kw) = (
-                vertex_key(m, p, a),
-                vertex_key(m, p, b),
-                vertex_key(m, p, w),
-            );
-            made.push(Tri {
-                p: [pa, mid, pw],
-                k: [ka, new as Key, kw],
-            });
-            made.push(Tri {
-                p: [mid, pb, pw],
-                k: [new as Key, kb, kw],
-            });
-            self.replaced.push((p, m.face(g)));
-        }
-        self.made = made;
-        if !self.guard_clear() {
-            return None;
-        }
-        let old = self.replaced.clone();
+        let old: Vec<(u32, u32)> = sites
+            .iter()
+            .map(|&(p, h)| {
+                let m = &self.patches[p as usize].mesh;
+                let g = if m.is_boundary_halfedge(h) { h ^ 1 } else { h };
+                (p, m.face(g))
+            })
+            .collect();
         self.unregister(&old);
         self.pos.push(mid);
         self.kind.push(self.kind_of_new_curve_vertex(c));
@@ -701,10 +670,18 @@ impl<'r> Remesher<'r> {
 
     /// One B&K iteration on the interior of patch `p` (curves frozen).
     fn remesh_patch(&mut self, p: u32) {
+        let t = std::time::Instant::now();
         self.split_long_edges(p);
+        self.stats[5] += t.elapsed().as_nanos() as u64;
+        let t = std::time::Instant::now();
         self.collapse_short_edges(p);
+        self.stats[6] += t.elapsed().as_nanos() as u64;
+        let t = std::time::Instant::now();
         self.equalize_valences(p);
+        self.stats[7] += t.elapsed().as_nanos() as u64;
+        let t = std::time::Instant::now();
         self.relax_and_project(p);
+        self.stats[8] += t.elapsed().as_nanos() as u64;
     }
 
     fn fit(&self, p: u32) -> Fit<'r> {
@@ -722,9 +699,8 @@ impl<'r> Remesher<'r> {
                 continue;
             }
             let (a, b) = (m.pos[m.from(h) as usize], m.pos[m.to(h) as usize]);
-            let mid = (a + b) * 0.5;
-            if (a - b).length() > SPLIT_ABOVE * self.sizing.at(mid) {
-                self.guarded_split(p, h, mid);
+            if (a - b).length() > SPLIT_ABOVE * self.sizing.at((a + b) * 0.5) {
+                self.split_at_midpoint(p, h);
             }
         }
     }
@@ -897,6 +873,7 @@ impl<'r> Remesher<'r> {
             }
         }
         RegionResult {
+            stats: self.stats,
             pos,
             kind,
             alive,
@@ -917,6 +894,7 @@ pub(super) struct ResultTriangle {
 
 /// A remeshed region (see [`Remesher::finish`]).
 pub(super) struct RegionResult {
+    pub(super) stats: [u64; 10],
     /// Positions of every region vertex (then of the vertices made).
     pub(super) pos: Vec<DVec3>,
     pub(super) kind: Vec<VertexKind>,
@@ -924,12 +902,6 @@ pub(super) struct RegionResult {
     pub(super) triangles: Vec<ResultTriangle>,
     /// The curve runs, in the order given, with their vertices now.
     pub(super) curves: Vec<Vec<u32>>,
-}
-
-/// The key the next vertex a split makes in patch `p` will have.
-fn vertex_key_of_next(m: &HalfedgeMesh, p: u32) -> Key {
-    // (splits make vertices without a tag: local keys)
-    (1 << 63) | ((p as Key) << 32) | m.vertex_slots() as Key
 }
 
 fn build_patch<'r>(pos: &[DVec3], kind: &[VertexKind], rp: RegionPatch<'r>) -> PatchState<'r> {

@@ -270,8 +270,17 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
         // at most an edge beyond their slab
         let reach = 2.0 * longest.max(sizing.max() * isotropic_split_above());
         let slabs = Slabs::over(&work, SLAB_REACHES * reach, reach, 0.5 * (it % 2) as f64);
+        let t = std::time::Instant::now();
         work.pass(&slabs, 0, &shared);
         work.pass(&slabs, 1, &shared);
+        if std::env::var_os("SEPTA_DEBUG_ITER").is_some() {
+            eprintln!(
+                "iteration {it}: {:.3} s, {} triangles, {} slabs",
+                t.elapsed().as_secs_f64(),
+                work.tris.len(),
+                slabs.count
+            );
+        }
     }
     timings.iterations = clock.elapsed().as_secs_f64();
 

@@ -99,6 +99,7 @@ impl Slabs {
 /// What one slab's remeshing gives back, over global ids: `NEW + i` for the
 /// i-th vertex it made.
 struct Outcome {
+    stats: [u64; 10],
     moved: Vec<(u32, DVec3)>,
     dead: Vec<u32>,
     made: Vec<(DVec3, VertexKind)>,
@@ -138,6 +139,27 @@ impl Work {
             .par_iter()
             .map(|&s| self.remesh_slab(slabs, s, &buckets, &uses, shared))
             .collect();
+        if std::env::var_os("SEPTA_DEBUG_ITER").is_some() {
+            let mut t = [0u64; 10];
+            for o in &outcomes {
+                for k in 0..10 {
+                    t[k] += o.stats[k];
+                }
+            }
+            eprintln!(
+                "  colour {colour}: {} guard queries ({:.1} made each, {:.1} µs each, {} refused); ms: curves {}, split {}, collapse {}, flip {}, relax {}, slab total {}",
+                t[0],
+                t[1] as f64 / t[0].max(1) as f64,
+                t[2] as f64 / t[0].max(1) as f64 / 1000.0,
+                t[3],
+                t[4] / 1_000_000,
+                t[5] / 1_000_000,
+                t[6] / 1_000_000,
+                t[7] / 1_000_000,
+                t[8] / 1_000_000,
+                t[9] / 1_000_000
+            );
+        }
         self.merge(&todo, &slab_of, outcomes);
         if std::env::var_os("SEPTA_DEBUG_WORK").is_some() {
             if let Err(e) = self.check() {
@@ -173,6 +195,7 @@ impl Work {
     ) -> Outcome {
         let own = &buckets[s];
         let empty = Outcome {
+            stats: [0; 10],
             moved: Vec::new(),
             dead: Vec::new(),
             made: Vec::new(),
@@ -341,6 +364,7 @@ impl Work {
             obstacles,
             trusted: (lo, hi),
         };
+        let t_slab = std::time::Instant::now();
         let mut r = Remesher::new(region, shared.sizing, shared.eps, cell);
         r.iterate();
         let result: RegionResult = r.finish();
@@ -385,6 +409,8 @@ impl Work {
             }
         };
         let mut out = empty;
+        out.stats = result.stats;
+        out.stats[9] = t_slab.elapsed().as_nanos() as u64;
         for l in 0..n_own_vertices {
             if !free[l] {
                 continue;
