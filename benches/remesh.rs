@@ -38,10 +38,11 @@ fn bench_remesh(c: &mut Criterion) {
         target_edge: 2.0,
         ..Default::default()
     };
+    let sizing = params.sizing(pre.refined.grid(), vol.geometry());
     let mut group = c.benchmark_group("heart_128^3_noise0.01");
     group.sample_size(10);
     group.bench_function("smooth+remesh L=2mm", |b| {
-        b.iter(|| black_box(remesh(black_box(&mesh), &params).unwrap()))
+        b.iter(|| black_box(remesh(black_box(&mesh), &sizing, &params).unwrap()))
     });
     group.finish();
 }

@@ -152,8 +152,9 @@ fn main() {
         target_edge: RemeshParams::default_target(vol.geometry()),
         ..Default::default()
     };
+    let sizing = params.sizing(pre.refined.grid(), vol.geometry());
     let t = Instant::now();
-    let out = remesh(&mesh, &params).unwrap();
+    let out = remesh(&mesh, &sizing, &params).unwrap();
     println!(
         "threads {}; remesh {:.2} s; {:?}",
         rayon::current_num_threads(),

@@ -24,14 +24,14 @@ fn main() {
         target_edge,
         ..Default::default()
     };
-    let out = remesh(&mesh, &params).unwrap();
+    let sizing = params.sizing(pre.refined.grid(), vol.geometry());
+    let out = remesh(&mesh, &sizing, &params).unwrap();
     println!(
-        "{} -> {} triangles in {:.3} s, {} crossings left, {} vertices kept; {:?}",
+        "{} -> {} triangles in {:.3} s, {:.2} % of the surface left as extracted; {:?}",
         mesh.triangle_count(),
         out.mesh.triangle_count(),
         t.elapsed().as_secs_f64(),
-        out.intersections_left,
-        out.kept,
+        100.0 * out.kept_share,
         out.timings
     );
 }

@@ -39,6 +39,10 @@ use crate::mesh::quality::{EDGE_RANGE_HI, EDGE_RANGE_LO};
 /// it replaces were worse).
 const MIN_QUALITY: f64 = 0.15;
 
+/// Relaxation moves shorter than this many targets are not made (the vertex
+/// is at rest; the move would cost a projection and every check for nothing).
+const RELAX_AT_REST: f64 = 0.02;
+
 /// Edges longer than this many targets are split.
 const SPLIT_ABOVE: f64 = EDGE_RANGE_HI;
 /// Edges shorter than this many targets are collapsed.
@@ -784,33 +788,51 @@ impl<'r> Remesher<'r> {
         }
     }
 
-    /// Tangential relaxation toward the centroid of the one-ring, then
-    /// projection onto the reference; moves that would turn a triangle over,
-    /// or that the guard refuses, are skipped.
+    /// Tangential relaxation toward the density-weighted centroid of the
+    /// one-ring (Dunyach et al. 2013: the barycentres of the incident
+    /// triangles weighted by area / h², so that vertices settle where the
+    /// triangles have the local target size), then projection onto the
+    /// reference; moves that would turn a triangle over, or that the guard
+    /// refuses, are skipped, and so are moves too small to matter.
     fn relax_and_project(&mut self, p: u32) {
         let fit = self.fit(p);
+        let sizing = self.sizing;
         let m = &self.patches[p as usize].mesh;
         let moves: Vec<(u32, DVec3, u32)> = m
             .vertices()
             .filter(|&v| !m.locked[v as usize] && !m.is_boundary_vertex(v))
-            .map(|v| {
+            .filter_map(|v| {
                 let at = m.pos[v as usize];
                 let mut centroid = DVec3::ZERO;
+                let mut weights = 0.0;
                 let mut normal = DVec3::ZERO;
-                let mut k = 0.0;
                 for h in m.outgoing(v) {
-                    centroid += m.pos[m.to(h) as usize];
-                    k += 1.0;
-                    if !m.is_boundary_halfedge(h) {
-                        normal += m.face_normal(m.face(h));
+                    if m.is_boundary_halfedge(h) {
+                        continue;
                     }
+                    let (a, b) = (m.pos[m.to(h) as usize], m.pos[m.to(m.next(h)) as usize]);
+                    let n = (a - at).cross(b - at);
+                    let bary = (at + a + b) / 3.0;
+                    let target = sizing.at(bary);
+                    let w = n.length().max(f64::MIN_POSITIVE) / (target * target);
+                    centroid += bary * w;
+                    weights += w;
+                    normal += n;
+                }
+                if weights <= 0.0 {
+                    return None;
                 }
                 let n = normal.normalize_or_zero();
-                let d = centroid / k - at;
+                let d = centroid / weights - at;
+                let tangential = d - n * d.dot(n);
+                // (a vertex at rest stays: no projection, no checks)
+                if tangential.length() < RELAX_AT_REST * sizing.at(at) {
+                    return None;
+                }
                 let (onto, near) = fit
                     .reference
-                    .project_from(at + d - n * d.dot(n), m.hint[v as usize]);
-                (v, onto, near)
+                    .project_from(at + tangential, m.hint[v as usize]);
+                Some((v, onto, near))
             })
             .collect();
         for (v, to, near) in moves {
