@@ -292,7 +292,6 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
 /// What the remesher did where crossings were left (see `septa::remesh::remesh`).
 struct Fallback {
     attempts: usize,
@@ -328,6 +327,7 @@ impl Fallback {
     }
 }
 
+#[allow(clippy::too_many_arguments)] // one summary of everything the run did
 fn summarize(
     ui: &Ui,
     args: &ExtractArgs,

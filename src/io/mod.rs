@@ -186,6 +186,7 @@ impl Samples {
     }
 
     /// Every sample as f64 (exact for all types but 64-bit integers beyond 2^53).
+    #[allow(clippy::unnecessary_cast)] // one cast for all ten types, f64 among them
     pub fn to_f64(&self) -> Vec<f64> {
         for_each_samples!(self, v => v.iter().map(|&x| x as f64).collect())
     }
