@@ -52,7 +52,7 @@ pub fn read(path: &Path) -> Result<Image> {
     let header_path = header_path_of(path)?;
     let file = read_file(&header_path)?;
     let prefix = if gz::is_gzip(&file) {
-        gz::gunzip(&header_path, &file, NIFTI2_HEADER as u64)?
+        gz::gunzip_prefix(&header_path, &file, NIFTI2_HEADER)?
     } else {
         file[..file.len().min(NIFTI2_HEADER)].to_vec()
     };
@@ -70,6 +70,10 @@ pub fn read(path: &Path) -> Result<Image> {
             h.little_endian,
         )?
     } else {
+        if gz::is_gzip(&file) {
+            // a gzipped .hdr is read only up to its header: verify the rest too
+            gz::gunzip(&header_path, &file, gz::max_inflated_len(file.len()))?;
+        }
         let data_path = data_path_of(&header_path)?;
         let offset = h.data_offset_pair(&header_path)?;
         read_voxels(
@@ -93,7 +97,7 @@ pub fn read(path: &Path) -> Result<Image> {
     })
 }
 
-/// Decodes the voxels at `offset` of `file` (gunzipping just as much as needed).
+/// Decodes the voxels at `offset` of `file` (gunzipped and verified when it is gzip).
 fn read_voxels(
     path: &Path,
     file: Vec<u8>,
