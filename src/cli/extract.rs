@@ -13,7 +13,7 @@ use septa::extract::{Decompose, ExtractOptions, Surface, extract, label_infos};
 use septa::mesh::quality::{QualityOptions, quality};
 use septa::mesh::stats::patch_stats;
 use septa::mesh::validate::{Options, validate};
-use septa::output::{Formats, check_outdir, patch_path, write_outdir};
+use septa::output::{Formats, OutDir, patch_paths, rel_string, write_outdir};
 use septa::preprocess::preprocess;
 use septa::remesh::{RemeshParams, remesh};
 
@@ -112,12 +112,23 @@ fn remesh_params(
 }
 
 pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
-    check_outdir(&args.output, Some(&args.input.volume), args.force)?;
+    // the destination is checked before any work, and again with every file
+    // the volume's header named (detached data) once it is read
+    let mut outdir = OutDir::new(&args.output, args.force);
+    outdir.protect(&args.input.volume);
+    if let Some(c) = &args.input.config {
+        outdir.protect(c);
+    }
+    outdir.check()?;
     let mut timings: Vec<(&str, Duration)> = Vec::new();
 
     let stage = ui.stage("reading volume");
     let loaded = load(&args.input, ui)?;
     timings.push(("read", stage.done()));
+    for s in &loaded.sources {
+        outdir.protect(s);
+    }
+    outdir.check()?;
     let v = &loaded.volume;
     let r = &loaded.resolved;
     let params = remesh_params(args, &loaded.config.remesh, v.geometry());
@@ -199,6 +210,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
 
     let stage = ui.stage("writing");
     let stats = patch_stats(&mesh);
+    let patch_files = patch_paths(&mesh);
     let counts = v.voxel_counts();
     let voxel_ml = v.geometry().voxel_volume_mm3() / 1000.0;
     let (nv, ne, nf) = pre.critical.counts();
@@ -242,7 +254,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
             "patch": i,
             "label_a": mesh.label_value(p.labels[0]), "label_b": mesh.label_value(p.labels[1]),
             "name_a": mesh.label_name(p.labels[0]), "name_b": mesh.label_name(p.labels[1]),
-            "file": patch_path(&mesh, i).display().to_string(),
+            "file": rel_string(&patch_files[i]),
             "stats": stats[i],
         })).collect::<Vec<_>>(),
         "junction_curves": mesh.junctions.iter().map(|c| serde_json::json!({
@@ -262,7 +274,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
         vtp: args.formats.contains(&FormatArg::Vtp),
         stl: args.formats.contains(&FormatArg::Stl),
     };
-    let files = write_outdir(&args.output, &mesh, formats, manifest)?;
+    let files = write_outdir(&outdir, &mesh, formats, manifest)?;
     timings.push(("write", stage.done()));
 
     summarize(

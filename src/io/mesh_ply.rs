@@ -315,13 +315,23 @@ fn edge_element(count: usize) -> ElementDef {
     )
 }
 
-/// A binary little-endian header with septa's comments and the given elements.
-fn header(mesh: &InterfaceMesh, extra_comments: &[String], elements: Vec<ElementDef>) -> Header {
+/// A binary little-endian header with septa's comments, a `comment label`
+/// line for each of `labels` (the labels the file holds: a patch file lists
+/// its two, not all of the volume's), and the given elements.
+fn header(
+    mesh: &InterfaceMesh,
+    labels: impl IntoIterator<Item = LabelId>,
+    extra_comments: &[String],
+    elements: Vec<ElementDef>,
+) -> Header {
     let mut h = Header::new();
     h.encoding = Encoding::BinaryLittleEndian;
     h.comments.push(format!("septa {VERSION}"));
     h.comments.push("space LPS mm".to_string());
-    for l in &mesh.labels {
+    for id in labels {
+        let Some(l) = mesh.labels.get(id as usize) else {
+            continue;
+        };
         h.comments.push(
             format!("label {} {}", l.value, one_line(&l.name))
                 .trim_end()
@@ -371,6 +381,7 @@ pub fn write_ply(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
     let values = patch_values(mesh)?;
     let h = header(
         mesh,
+        0..mesh.labels.len() as LabelId,
         &[],
         vec![
             vertex_element(mesh.vertex_count(), false),
@@ -459,7 +470,12 @@ fn write_patch(
     local.assign(&used);
     let comment = format!("patch {patch} {va} {vb}");
     let elements = vec![vertex_element(used.len(), true), face_element(tris.len())];
-    let h = header(mesh, &[comment], elements);
+    let h = header(
+        mesh,
+        mesh.patches[patch as usize].labels,
+        &[comment],
+        elements,
+    );
     let vertices = used.iter().map(|&v| VertexOut::new_at(mesh, v));
     let faces = tris.iter().map(|t| FaceOut {
         v: corners(t).map(|v| local.get(v)),
@@ -492,15 +508,25 @@ pub fn patch_file_name(mesh: &InterfaceMesh, prefix: &str, patch: u32) -> String
 /// Writes every patch to `dir/<prefix><value_a>_<value_b>.ply` (see
 /// [`write_patch_ply`]); returns the paths in patch order.
 pub fn write_patch_plys(dir: &Path, prefix: &str, mesh: &InterfaceMesh) -> Result<Vec<PathBuf>> {
+    let path_of = |p: usize| dir.join(patch_file_name(mesh, prefix, p as u32));
+    write_patch_plys_to(mesh, path_of)?;
+    Ok((0..mesh.patches.len()).map(path_of).collect())
+}
+
+/// Writes every patch `p` to `path_of(p)` (see [`write_patch_ply`]) in one
+/// pass over the triangles; returns the number of files written.
+pub fn write_patch_plys_to(
+    mesh: &InterfaceMesh,
+    path_of: impl Fn(usize) -> PathBuf,
+) -> Result<usize> {
     check_writable(mesh)?;
     let values = patch_values(mesh)?;
     let groups = mesh.patch_triangles();
     let mut local = LocalIds::new(mesh.vertex_count());
-    let write = |(p, tris): (usize, &Vec<u32>)| {
-        let path = dir.join(patch_file_name(mesh, prefix, p as u32));
-        write_patch(&path, mesh, p as u32, &values, tris, &mut local).map(|()| path)
-    };
-    groups.iter().enumerate().map(write).collect()
+    for (p, tris) in groups.iter().enumerate() {
+        write_patch(&path_of(p), mesh, p as u32, &values, tris, &mut local)?;
+    }
+    Ok(groups.len())
 }
 
 /// Edges (local vertex ids, curve index) of every junction curve.
@@ -558,8 +584,14 @@ pub fn write_junctions_ply(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
     let mut local = LocalIds::new(n);
     local.assign(&used);
     let edges = junction_edges(mesh, &local);
+    let on_curves: BTreeSet<LabelId> = mesh
+        .junctions
+        .iter()
+        .flat_map(|c| c.labels.iter().copied())
+        .collect();
     let h = header(
         mesh,
+        on_curves,
         &[],
         vec![vertex_element(used.len(), true), edge_element(edges.len())],
     );

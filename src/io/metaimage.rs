@@ -59,6 +59,7 @@ pub fn read(path: &Path) -> Result<Image> {
         geometry,
         time_step,
         path: path.to_path_buf(),
+        sources: crate::io::nrrd::sources(path, &data_path),
     })
 }
 

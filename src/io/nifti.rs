@@ -60,6 +60,7 @@ pub fn read(path: &Path) -> Result<Image> {
     let dtype = data_type(&header_path, h.datatype)?;
     let dims = extents(&header_path, &h)?;
     let geometry = geometry(&header_path, &h)?;
+    let mut sources = vec![header_path.clone()];
     let samples = if h.single_file {
         read_voxels(
             &header_path,
@@ -75,6 +76,7 @@ pub fn read(path: &Path) -> Result<Image> {
             gz::gunzip(&header_path, &file, gz::max_inflated_len(file.len()))?;
         }
         let data_path = data_path_of(&header_path)?;
+        sources.push(data_path.clone());
         let offset = h.data_offset_pair(&header_path)?;
         read_voxels(
             &data_path,
@@ -94,6 +96,7 @@ pub fn read(path: &Path) -> Result<Image> {
         geometry,
         time_step,
         path: path.to_path_buf(),
+        sources,
     })
 }
 

@@ -65,7 +65,17 @@ pub fn read(path: &Path) -> Result<Image> {
         geometry: layout.geometry,
         time_step: layout.time_step,
         path: path.to_path_buf(),
+        sources: sources(path, &data_path),
     })
+}
+
+/// The header, and the detached data file if there is one.
+pub(crate) fn sources(path: &Path, data_path: &Path) -> Vec<std::path::PathBuf> {
+    let mut v = vec![path.to_path_buf()];
+    if data_path != path {
+        v.push(data_path.to_path_buf());
+    }
+    v
 }
 
 // ------------------------------------------------------------------- header

@@ -56,6 +56,7 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<Image> {
         geometry,
         time_step: None,
         path: path.to_path_buf(),
+        sources: vec![path.to_path_buf()],
     })
 }
 
