@@ -387,6 +387,92 @@ const CASES: &[Case] = &[
         stderr: &["256 bytes long"],
         creates: &[],
     },
+    // ── 7. remeshing parameters have bounds; errors name the flag or key ──
+    Case {
+        name: "remesh: --target-edge 1e-9",
+        setup: |d| {
+            blocks(d, "v.nii");
+            args(&["extract", "v.nii", "-o", "out", "--target-edge", "1e-9"])
+        },
+        code: 2,
+        stderr: &["--target-edge 0.000000001", "shorter than 0.1 voxel"],
+        creates: &[],
+    },
+    Case {
+        name: "remesh: --target-edge 1e9",
+        setup: |d| {
+            blocks(d, "v.nii");
+            args(&["extract", "v.nii", "-o", "out", "--target-edge", "1e9"])
+        },
+        code: 2,
+        stderr: &["--target-edge 1000000000", "longer than the whole volume"],
+        creates: &[],
+    },
+    Case {
+        name: "remesh: --smooth-iterations 1000000000",
+        setup: |d| {
+            blocks(d, "v.nii");
+            args(&[
+                "extract",
+                "v.nii",
+                "-o",
+                "out",
+                "--smooth-iterations",
+                "1000000000",
+            ])
+        },
+        code: 2,
+        stderr: &["--smooth-iterations 1000000000", "at most 1000"],
+        creates: &[],
+    },
+    Case {
+        name: "remesh: config smooth_iterations = 1000000000",
+        setup: |d| {
+            blocks(d, "v.nii");
+            put(d, "bad.toml", "[remesh]\nsmooth_iterations = 1000000000\n");
+            args(&["extract", "v.nii", "-c", "bad.toml", "-o", "out"])
+        },
+        code: 2,
+        stderr: &["bad.toml", "remesh.smooth_iterations"],
+        creates: &[],
+    },
+    Case {
+        name: "remesh: config iterations = 1e9",
+        setup: |d| {
+            blocks(d, "v.nii");
+            put(d, "bad.toml", "[remesh]\niterations = 1e9\n");
+            args(&["extract", "v.nii", "-c", "bad.toml", "-o", "out"])
+        },
+        code: 2,
+        stderr: &["bad.toml", "remesh.iterations"],
+        creates: &[],
+    },
+    Case {
+        name: "remesh: config target_edge = 1e9",
+        setup: |d| {
+            blocks(d, "v.nii");
+            put(d, "bad.toml", "[remesh]\ntarget_edge = 1e9\n");
+            args(&["extract", "v.nii", "-c", "bad.toml", "-o", "out"])
+        },
+        code: 2,
+        stderr: &[
+            "bad.toml",
+            "remesh.target_edge",
+            "longer than the whole volume",
+        ],
+        creates: &[],
+    },
+    Case {
+        name: "remesh: config target_edge = -1",
+        setup: |d| {
+            blocks(d, "v.nii");
+            put(d, "bad.toml", "[remesh]\ntarget_edge = -1.0\n");
+            args(&["extract", "v.nii", "-c", "bad.toml", "-o", "out"])
+        },
+        code: 2,
+        stderr: &["bad.toml", "remesh.target_edge", "positive"],
+        creates: &[],
+    },
     // ── 4. stale temporary output of killed runs is removed ──
     Case {
         name: "stale: leftovers of dead processes are removed",
@@ -411,6 +497,44 @@ fn set_mode(p: &Path, mode: u32) {
 
 #[cfg(not(unix))]
 fn set_mode(_: &Path, _: u32) {}
+
+/// Case 7 through the library: `remesh` refuses absurd targets at once
+/// instead of running out of memory or for minutes.
+#[test]
+fn remesh_refuses_absurd_targets() {
+    use septa::remesh::{RemeshParams, remesh};
+    let dir = tempfile::tempdir().unwrap();
+    let vol =
+        septa::io::read_label_volume(&blocks(dir.path(), "v.nii"), &Default::default()).unwrap();
+    let r = septa::config::Resolved::defaults(&vol);
+    let pre = septa::preprocess::preprocess(&vol, &r);
+    let mesh = septa::extract::extract(
+        &pre.refined,
+        septa::extract::label_infos(&vol, None),
+        *vol.geometry(),
+        &Default::default(),
+    )
+    .unwrap();
+    for (target, smooth, iterations, needle) in [
+        (1e-9, 10, 8, "shorter than"),
+        (0.01, 10, 8, "shorter than"),
+        (1e9, 10, 8, "longer than"),
+        (f64::NAN, 10, 8, "positive"),
+        (2.0, 1_000_000_000, 8, "smooth_iterations"),
+        (2.0, 10, 1_000_000_000, "iterations"),
+    ] {
+        let p = RemeshParams {
+            target_edge: target,
+            smooth_iterations: smooth,
+            iterations,
+            ..Default::default()
+        };
+        let started = std::time::Instant::now();
+        let e = remesh(&mesh, &p).err().expect("refused").to_string();
+        assert!(e.contains(needle), "{e}");
+        assert!(started.elapsed().as_secs() < 1);
+    }
+}
 
 /// Files of the stale case that must be gone afterwards.
 const REMOVED: &[&str] = &[".septa-0-0.tmp", ".out.tmp-septa-0"];

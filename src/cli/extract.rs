@@ -111,6 +111,60 @@ fn remesh_params(
     })
 }
 
+/// Checks the remeshing parameters against the volume; an error names the
+/// flag, or the config file and key, the bad value came from.
+fn check_remesh(
+    params: &RemeshParams,
+    args: &ExtractArgs,
+    config: &septa::config::Config,
+    v: &septa::volume::LabelVolume,
+) -> Result<()> {
+    let g = v.geometry();
+    let d = v.dims();
+    let n = glam::DVec3::new(d.nx as f64, d.ny as f64, d.nz as f64);
+    let half = glam::DVec3::splat(0.5);
+    let extent = (g.index_to_physical(n - half) - g.index_to_physical(-half)).length();
+    params
+        .validate_scale(g, extent)
+        .map_err(|e| blame(e, args, config))
+}
+
+/// Turns a library parameter error into one about the flag or config key.
+fn blame(e: septa::Error, args: &ExtractArgs, config: &septa::config::Config) -> septa::Error {
+    let septa::Error::Parameter {
+        name,
+        value,
+        problem,
+    } = e
+    else {
+        return e;
+    };
+    let (flag, given) = match name {
+        "target_edge" => ("--target-edge", args.target_edge.is_some()),
+        "smooth_iterations" => ("--smooth-iterations", args.smooth_iterations.is_some()),
+        "max_displacement" => ("--max-displacement", args.max_displacement.is_some()),
+        "iterations" => ("--remesh-iterations", args.remesh_iterations.is_some()),
+        _ => {
+            return septa::Error::Parameter {
+                name,
+                value,
+                problem,
+            };
+        }
+    };
+    match (&config.path, given) {
+        (_, true) => septa::Error::invalid(format!("{flag} {value}: {problem}")),
+        (Some(path), false) => septa::Error::config(
+            path,
+            format!("remesh.{name}"),
+            format!("{value}: {problem}"),
+        ),
+        (None, false) => {
+            septa::Error::invalid(format!("the default {name} {value}: {problem}; set {flag}"))
+        }
+    }
+}
+
 pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
     // the destination is checked before any work, and again with every file
     // the volume's header named (detached data) once it is read
@@ -133,7 +187,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
     let r = &loaded.resolved;
     let params = remesh_params(args, &loaded.config.remesh, v.geometry());
     if let Some(p) = &params {
-        p.validate()?;
+        check_remesh(p, args, &loaded.config, v)?;
     }
 
     let stage = ui.stage("finding and fattening critical elements");
