@@ -106,6 +106,7 @@ pub struct Config {
 impl Config {
     /// Reads and parses a TOML file.
     pub fn from_file(path: &Path) -> Result<Config> {
+        crate::io::check_regular_file(path)?;
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         Self::from_toml_str(&text, path)
     }
@@ -236,6 +237,16 @@ impl Config {
             Some(r) => self.value_of(r, "outside")?,
             None => volume.value(volume.most_frequent_border_label()),
         };
+        if !occurs(outside_value) {
+            let name = self
+                .name_of(outside_value)
+                .map(|n| format!(" ({n})"))
+                .unwrap_or_default();
+            warnings.push(format!(
+                "outside: label {outside_value}{name} does not occur in the volume; it is added \
+                 as a label around it (every label on the border gets a surface against it)"
+            ));
+        }
 
         // Separation constraints, as values first.
         let mut groups: Vec<(Vec<i64>, i64)> = Vec::new();

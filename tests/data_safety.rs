@@ -96,6 +96,16 @@ fn blocks(dir: &Path, name: &str) -> PathBuf {
     })
 }
 
+/// A smooth 0–255 "probability map" with noise, 24³: an intensity image.
+fn gray(dir: &Path, name: &str) -> PathBuf {
+    volume(dir, name, [24, 24, 24], |x, y, z| {
+        let v = 127.5
+            + 127.0
+                * ((x as f64 * 0.3).sin() * (y as f64 * 0.25).cos() * (z as f64 * 0.2 + 1.0).sin());
+        (v as i64 + ((x * 7 + y * 3 + z) % 3) as i64).min(255)
+    })
+}
+
 fn put(dir: &Path, name: &str, bytes: impl AsRef<[u8]>) -> PathBuf {
     let path = dir.join(name);
     if let Some(p) = path.parent() {
@@ -471,6 +481,192 @@ const CASES: &[Case] = &[
         },
         code: 2,
         stderr: &["bad.toml", "remesh.target_edge", "positive"],
+        creates: &[],
+    },
+    // ── 6. grayscale data given as labels ──
+    Case {
+        name: "intensity: extract refuses what would not fit, pointing to septa iso",
+        setup: |d| {
+            gray(d, "gray.nii");
+            args(&["extract", "gray.nii", "-o", "out", "--max-memory", "50M"])
+        },
+        code: 2,
+        stderr: &["gray.nii", "would need about", "50 MB", "septa iso"],
+        creates: &[],
+    },
+    Case {
+        name: "intensity: info says so",
+        setup: |d| {
+            gray(d, "gray.nii");
+            args(&["info", "gray.nii"])
+        },
+        code: 0,
+        stderr: &["looks like an intensity image", "septa iso"],
+        creates: &[],
+    },
+    // ── 10. the silent oddities ──
+    Case {
+        name: "oddity: outside = 99 does not occur",
+        setup: |d| {
+            blocks(d, "v.nii");
+            put(d, "o.toml", "outside = 99\n");
+            args(&["info", "v.nii", "-c", "o.toml"])
+        },
+        code: 0,
+        stderr: &["outside: label 99 does not occur"],
+        creates: &[],
+    },
+    Case {
+        name: "oddity: iso on NaN and infinite samples",
+        setup: |d| {
+            let mut data = Vec::new();
+            for i in 0..27 {
+                let v = match i {
+                    13 => f32::NAN,
+                    0 => f32::INFINITY,
+                    _ => (i % 5) as f32,
+                };
+                data.extend(v.to_le_bytes());
+            }
+            let header = "NRRD0004\ntype: float\ndimension: 3\nsizes: 3 3 3\nendian: little\nencoding: raw\n\n";
+            put(d, "nan.nrrd", [header.as_bytes(), &data].concat());
+            args(&["iso", "nan.nrrd", "--iso", "2", "-o", "s.ply"])
+        },
+        code: 0,
+        stderr: &["nan.nrrd", "1 samples are NaN and 1 infinite"],
+        creates: &["s.ply"],
+    },
+    Case {
+        name: "oddity: iso 1.5 on a 1-255 map",
+        setup: |d| {
+            gray(d, "gray.nii");
+            args(&["iso", "gray.nii", "--iso", "1.5", "-o", "s.ply", "-q"])
+        },
+        code: 0,
+        stderr: &["at the bottom of the values (1 to 255)"],
+        creates: &["s.ply"],
+    },
+    Case {
+        name: "oddity: hyper --at-time beyond the last frame",
+        setup: |d| {
+            blocks(d, "f0.nii");
+            blocks(d, "f1.nii");
+            args(&[
+                "hyper",
+                "--frames",
+                "f0.nii",
+                "f1.nii",
+                "--iso",
+                "1",
+                "--at-time",
+                "99",
+                "-o",
+                "out",
+            ])
+        },
+        code: 2,
+        stderr: &["slice time 99 lies outside", "0 to 1"],
+        creates: &[],
+    },
+    Case {
+        name: "oddity: NRRD sizes 8 8 8 on 16³ data",
+        setup: |d| {
+            let header = "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 8 8 8\nencoding: raw\n\n";
+            put(d, "small.nrrd", [header.as_bytes(), &[0u8; 4096]].concat());
+            args(&["info", "small.nrrd"])
+        },
+        code: 2,
+        stderr: &["small.nrrd", "3584 bytes would be ignored"],
+        creates: &[],
+    },
+    Case {
+        name: "oddity: the MHA data file is a directory",
+        setup: |d| {
+            std::fs::create_dir(d.join("data.raw")).unwrap();
+            put(
+                d,
+                "v.mhd",
+                "NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = data.raw\n",
+            );
+            args(&["info", "v.mhd"])
+        },
+        code: 2,
+        stderr: &["v.mhd", "data.raw", "is a directory"],
+        creates: &[],
+    },
+    Case {
+        name: "oddity: the MHA data file is /dev/zero",
+        setup: |d| {
+            put(
+                d,
+                "v.mhd",
+                "NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = /dev/zero\n",
+            );
+            args(&["info", "v.mhd"])
+        },
+        code: 2,
+        stderr: &["v.mhd", "/dev/zero", "not a regular file"],
+        creates: &[],
+    },
+    Case {
+        name: "oddity: raw /dev/zero",
+        setup: |_| {
+            args(&[
+                "info",
+                "/dev/zero",
+                "--dims",
+                "10,10,10",
+                "--dtype",
+                "uint8",
+            ])
+        },
+        code: 2,
+        stderr: &["/dev/zero", "not a regular file"],
+        creates: &[],
+    },
+    Case {
+        name: "oddity: int64 labels too large for the PLY",
+        setup: |d| {
+            let mut data = Vec::new();
+            for i in 0..8i64 {
+                data.extend((if i == 3 { 1i64 << 40 } else { i % 2 }).to_le_bytes());
+            }
+            let header = "NRRD0004\ntype: int64\ndimension: 3\nsizes: 2 2 2\nendian: little\nencoding: raw\n\n";
+            put(d, "big.nrrd", [header.as_bytes(), &data].concat());
+            args(&["extract", "big.nrrd", "-o", "out"])
+        },
+        code: 2,
+        stderr: &["big.nrrd", "1099511627776", "32-bit"],
+        creates: &[],
+    },
+    Case {
+        name: "oddity: check on faces of 0 and 1 vertices",
+        setup: |d| {
+            put(
+                d,
+                "short.ply",
+                "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+                 element face 3\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n1 2\n0\n",
+            );
+            args(&["check", "short.ply"])
+        },
+        code: 1,
+        stderr: &[],
+        creates: &[],
+    },
+    Case {
+        name: "oddity: check on a face [0, 0, 5]",
+        setup: |d| {
+            put(
+                d,
+                "rep.ply",
+                "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\n\
+                 element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 1 0\n1 1 1\n3 0 0 5\n",
+            );
+            args(&["check", "rep.ply", "--json"])
+        },
+        code: 1,
+        stderr: &[],
         creates: &[],
     },
     // ── 4. stale temporary output of killed runs is removed ──

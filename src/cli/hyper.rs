@@ -232,6 +232,7 @@ pub fn run(args: &HyperArgs, ui: &Ui) -> Result<ExitCode> {
         outdir.protect(s);
     }
     outdir.check()?;
+    check_times(args, &input, &times)?;
 
     let stage = ui.stage("extracting the hypersurface");
     let h = match &input {
@@ -313,6 +314,23 @@ pub fn run(args: &HyperArgs, ui: &Ui) -> Result<ExitCode> {
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Slice times must lie between the first frame and the last: beyond them
+/// there is no data, and a slice would be empty.
+fn check_times(args: &HyperArgs, input: &Input, times: &[f64]) -> Result<()> {
+    let (dims, _, file_dt) = input.describe();
+    let frames = dims.get(3).copied().unwrap_or(1);
+    let dt = args.time_step.or(file_dt).unwrap_or(1.0);
+    let last = (frames.saturating_sub(1)) as f64 * dt;
+    let (lo, hi) = (last.min(0.0), last.max(0.0));
+    match times.iter().find(|&&t| t < lo || t > hi) {
+        Some(t) => Err(Error::invalid(format!(
+            "slice time {t} lies outside the data: {frames} frames {dt} apart span {lo} to {hi} \
+             (--at-time and --times take times, not frame numbers)"
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// Reads `--field` and interpolates it onto the hypersurface.

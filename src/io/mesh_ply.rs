@@ -619,6 +619,8 @@ pub struct PlyMesh {
     pub vertex_ids: Option<Vec<u32>>,
     /// What the reader had to assume or skip, for the user.
     pub notes: Vec<String>,
+    /// Faces of the file with fewer than three vertices (skipped), by index.
+    pub short_faces: Vec<usize>,
 }
 
 /// Implements the eight scalar setters of `PropertyAccess` through `self.scalar`.
@@ -1006,7 +1008,7 @@ fn face_labels(path: &Path, f: usize, face: &FaceIn) -> Result<[i64; 2]> {
 struct Triangles {
     triangles: Vec<[u32; 3]>,
     values: Vec<[i64; 2]>,
-    skipped: usize,
+    skipped: Vec<usize>,
     swapped: usize,
 }
 
@@ -1014,7 +1016,7 @@ fn triangulate(path: &Path, faces: &[FaceIn], n: usize, labelled: bool) -> Resul
     let mut out = Triangles {
         triangles: Vec::with_capacity(faces.len()),
         values: Vec::new(),
-        skipped: 0,
+        skipped: Vec::new(),
         swapped: 0,
     };
     out.values.reserve(faces.len());
@@ -1029,7 +1031,7 @@ fn triangulate(path: &Path, faces: &[FaceIn], n: usize, labelled: bool) -> Resul
             ));
         }
         if idx.len() < 3 {
-            out.skipped += 1;
+            out.skipped.push(f);
             continue;
         }
         let mut labels = if labelled {
@@ -1126,10 +1128,10 @@ fn build(
         notes.push("faces have no label_a/label_b: all of them form one patch from 'inside' (0) to 'outside' (1)".into());
         BTreeMap::from([(0, "inside".to_string()), (1, "outside".to_string())])
     };
-    if tris.skipped > 0 {
+    if !tris.skipped.is_empty() {
         notes.push(format!(
             "skipped {} faces with fewer than 3 vertices",
-            tris.skipped
+            tris.skipped.len()
         ));
     }
     if tris.swapped > 0 {
@@ -1152,5 +1154,6 @@ fn build(
         mesh,
         vertex_ids,
         notes,
+        short_faces: tris.skipped,
     })
 }

@@ -528,7 +528,37 @@ pub fn sync_dir(dir: &Path) -> Result<()> {
     }
 }
 
-/// Reads a whole file into memory, with the path in the error.
+/// Reads a whole file into memory, with the path in the error. Only
+/// regular files: a directory, a device (`/dev/zero` reads for ever) or a
+/// pipe is an error that says so.
 pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|e| Error::io(path, e))
+    check_regular_file(path)?;
+    let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let mut bytes = Vec::new();
+    bytes
+        .try_reserve_exact(usize::try_from(len).unwrap_or(usize::MAX))
+        .map_err(|_| {
+            Error::input(
+                path,
+                format!("out of memory reading the file ({len} bytes)"),
+            )
+        })?;
+    std::io::Read::read_to_end(&mut file, &mut bytes).map_err(|e| Error::io(path, e))?;
+    Ok(bytes)
+}
+
+/// An error unless `path` is a regular file (or a link to one).
+pub fn check_regular_file(path: &Path) -> Result<()> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if meta.is_dir() {
+        return Err(Error::input(path, "is a directory, not a file"));
+    }
+    if !meta.is_file() {
+        return Err(Error::input(
+            path,
+            "is not a regular file (a device, pipe or socket): septa reads files",
+        ));
+    }
+    Ok(())
 }
