@@ -883,3 +883,36 @@ fn stopped_while_writing_leaves_nothing() {
         assert_eq!(snapshot(d), before, "SIG{signal}: something was left");
     }
 }
+
+/// Case 5: a 4.8 MB gzip NIfTI whose header declares 1700³ voxels: `info`
+/// under an address-space limit fails with a message (the data is short),
+/// instead of aborting on a 4 GiB allocation made up front.
+#[cfg(unix)]
+#[test]
+fn a_huge_claim_in_a_small_gzip_is_an_error_not_an_abort() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let nii = std::fs::read(blocks(d, "small.nii")).unwrap();
+    let mut header = nii[..352].to_vec();
+    for (k, v) in [3i16, 1700, 1700, 1700].iter().enumerate() {
+        header[40 + 2 * k..42 + 2 * k].copy_from_slice(&v.to_le_bytes());
+    }
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::none());
+    e.write_all(&header).unwrap();
+    e.write_all(&vec![1u8; 4_800_000]).unwrap();
+    put(d, "huge.nii.gz", e.finish().unwrap());
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -v 1000000 && exec \"$0\" info huge.nii.gz")
+        .arg(bin())
+        .current_dir(d)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("huge.nii.gz") && err.contains("truncated"),
+        "{err}"
+    );
+}
