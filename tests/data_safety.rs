@@ -371,6 +371,24 @@ const CASES: &[Case] = &[
         creates: &[],
     },
     Case {
+        name: "destination: iso into a folder nothing can be created in",
+        setup: |d| {
+            gray(d, "gray.nii");
+            let out = if std::fs::create_dir("/sys/septa-probe").is_err() {
+                "/sys/septa-out.ply".to_string()
+            } else {
+                let ro = d.join("ro");
+                std::fs::create_dir(&ro).unwrap();
+                set_mode(&ro, 0o555);
+                ro.join("s.ply").to_string_lossy().into_owned()
+            };
+            args(&["iso", "gray.nii", "--iso", "100", "-o", &out])
+        },
+        code: 2,
+        stderr: &["cannot be written"],
+        creates: &[],
+    },
+    Case {
         name: "destination: a 245-byte OUTDIR name works",
         setup: |d| {
             blocks(d, "v.nii");

@@ -128,6 +128,7 @@ pub fn run(args: &IsoArgs, ui: &Ui) -> Result<ExitCode> {
     opts.check()?;
     refuse_input_as_output(&args.output, &args.volume)?;
     let format = MeshFormat::of(&args.output)?;
+    septa::io::check_writable(&args.output)?;
 
     let stage = ui.stage("reading volume");
     let image = read_image(&args.volume, &args.read_options()?)?;

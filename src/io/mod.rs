@@ -433,7 +433,7 @@ pub fn read_label_volume(path: &Path, opts: &ReadOptions) -> Result<LabelVolume>
 }
 
 /// Writes a label volume; the format follows the extension (`.nii`, `.nii.gz`,
-/// `.nrrd`). Atomic; refuses to write over `protect` (the input file).
+/// `.nrrd`). Atomic (see [`atomic_write`]).
 pub fn write_label_volume(path: &Path, volume: &LabelVolume) -> Result<()> {
     match VolumeFormat::from_path(path) {
         Some(VolumeFormat::Nifti) => nifti::write_labels(path, volume),
@@ -469,6 +469,11 @@ pub fn atomic_write_with(
     }
     temp::check_not_stopping(path)?;
     let sync = !temp::inside_registered_dir(path);
+    if sync {
+        // what killed runs left beside their files (inside a temporary
+        // directory there is nothing to sweep)
+        temp::sweep_stale(dir);
+    }
     let tmp = temp::register(temp::temp_path(dir, temp::Kind::New));
     let result = (|| -> std::io::Result<()> {
         let file = std::fs::File::create(tmp.path())?;
@@ -489,6 +494,32 @@ pub fn atomic_write_with(
         Err(e) => {
             tmp.remove();
             Err(Error::io(path, e))
+        }
+    }
+}
+
+/// Checks, before the work, that `path` can be written: creates and removes a
+/// temporary file beside it (a read-only or missing folder fails now).
+pub fn check_writable(path: &Path) -> Result<()> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let probe = temp::register(temp::temp_path(dir, temp::Kind::New));
+    match std::fs::File::create(probe.path()) {
+        Ok(_) => {
+            probe.remove();
+            Ok(())
+        }
+        Err(e) => {
+            drop(probe);
+            Err(Error::input(
+                path,
+                format!(
+                    "cannot be written: creating a file in {} fails: {e}",
+                    dir.display()
+                ),
+            ))
         }
     }
 }
