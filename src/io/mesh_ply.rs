@@ -43,9 +43,12 @@
 //! **Per-patch files** ([`write_patch_ply`], [`write_patch_plys`]) hold one
 //! patch's triangles over only the vertices they use, with one more vertex
 //! property, `property uint vid`: the vertex's id in the whole mesh, so the
-//! shared boundaries of patches in different files can be matched. They add a
-//! `comment patch <id> <value_a> <value_b>` line; faces have the same four
-//! properties.
+//! shared boundaries of patches in different files can be matched. Their
+//! `comment label` lines are the patch's two labels only (with thousands of
+//! labels, listing all of them in every file made the headers larger than the
+//! meshes), and they add a `comment patch <id> <value_a> <value_b>` line; faces
+//! have the same four properties. The junction file lists the labels that
+//! meet along its curves.
 //!
 //! **Junction files** ([`write_junctions_ply`]) hold the vertices of the junction
 //! curves (`float x, y, z`, `uint vid`) and an edge element:
