@@ -33,6 +33,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use crate::error::{Error, Result};
+use crate::remesh::RemeshParams;
 use crate::volume::{LabelId, LabelVolume};
 
 /// A reference to a label: its value, or its name from `[labels]`.
@@ -109,6 +110,7 @@ pub struct Config {
 impl Config {
     /// Reads and parses a TOML file.
     pub fn from_file(path: &Path) -> Result<Config> {
+        crate::io::check_regular_file(path)?;
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         Self::from_toml_str(&text, path)
     }
@@ -129,7 +131,10 @@ impl Config {
                     let before = &text[..span.start.min(text.len())];
                     let line = before.matches('\n').count() + 1;
                     let col = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
-                    format!("line {line}, column {col}")
+                    match key_at(text, span.start) {
+                        Some(k) => format!("line {line}, column {col} ({k})"),
+                        None => format!("line {line}, column {col}"),
+                    }
                 }
                 None => "config".to_string(),
             };
@@ -167,6 +172,7 @@ impl Config {
                 ));
             }
         }
+        check_remesh_options(&raw.remesh, path)?;
         Ok(Config {
             path: Some(path.to_path_buf()),
             names,
@@ -235,6 +241,16 @@ impl Config {
             Some(r) => self.value_of(r, "outside")?,
             None => volume.value(volume.most_frequent_border_label()),
         };
+        if !occurs(outside_value) {
+            let name = self
+                .name_of(outside_value)
+                .map(|n| format!(" ({n})"))
+                .unwrap_or_default();
+            warnings.push(format!(
+                "outside: label {outside_value}{name} does not occur in the volume; it is added \
+                 as a label around it (every label on the border gets a surface against it)"
+            ));
+        }
 
         // Separation constraints, as values first.
         let mut groups: Vec<(Vec<i64>, i64)> = Vec::new();
@@ -382,6 +398,55 @@ impl Config {
         };
         Ok((volume, resolved))
     }
+}
+
+/// The dotted key (`remesh.smooth_iterations`) of the `key = value` line
+/// holding byte `at` of `text`, when the line is one: TOML's messages give
+/// the position of a bad value but not always its key.
+fn key_at(text: &str, at: usize) -> Option<String> {
+    let at = at.min(text.len());
+    let start = text[..at].rfind('\n').map_or(0, |i| i + 1);
+    let line = text[start..].lines().next()?;
+    let (key, _) = line.split_once('=')?;
+    let key = key.trim();
+    if key.is_empty() || key.starts_with('[') || key.starts_with('#') {
+        return None;
+    }
+    let table = text[..start].lines().rev().find_map(|l| {
+        let l = l.trim();
+        (l.starts_with('[') && !l.starts_with("[["))
+            .then(|| l.trim_matches(['[', ']']).trim().to_string())
+    });
+    Some(match table {
+        Some(t) if !t.is_empty() => format!("{t}.{key}"),
+        _ => key.to_string(),
+    })
+}
+
+/// Checks the `[remesh]` values on their own (the bounds of
+/// [`RemeshParams::validate`]; those that depend on the volume are checked
+/// when it is known); an error names the key.
+fn check_remesh_options(o: &RemeshOptions, path: &Path) -> Result<()> {
+    let d = RemeshParams::default();
+    let p = RemeshParams {
+        target_edge: o.target_edge.unwrap_or(d.target_edge),
+        min_edge: o.min_edge,
+        smooth_iterations: o.smooth_iterations.unwrap_or(d.smooth_iterations),
+        max_displacement: o.max_displacement.unwrap_or(d.max_displacement),
+        iterations: o.iterations.unwrap_or(d.iterations),
+    };
+    p.validate().map_err(|e| match e {
+        Error::Parameter {
+            name,
+            value,
+            problem,
+        } => Error::config(
+            path,
+            format!("remesh.{name}"),
+            format!("{value}: {problem}"),
+        ),
+        other => other,
+    })
 }
 
 /// A volume whose value table also holds `extra` values (ids are remapped).
@@ -555,10 +620,27 @@ by = "myo"
             ("[labels]\nx = \"a\"\n", "labels.\"x\""),
             ("[labels]\n1 = \"a\"\n2 = \"a\"\n", "already used"),
             ("[remesh]\ntarget = 2.0\n", "target"),
+            (
+                "[remesh]\nsmooth_iterations = 1e9\n",
+                "remesh.smooth_iterations",
+            ),
+            (
+                "[remesh]\nsmooth_iterations = 1000000000\n",
+                "remesh.smooth_iterations",
+            ),
+            ("[remesh]\niterations = 1000000000\n", "remesh.iterations"),
+            ("[remesh]\ntarget_edge = 0\n", "remesh.target_edge"),
+            ("[remesh]\ntarget_edge = -1.0\n", "remesh.target_edge"),
+            ("[remesh]\ntarget_edge = nan\n", "remesh.target_edge"),
+            (
+                "[remesh]\nmax_displacement = inf\n",
+                "remesh.max_displacement",
+            ),
             ("[labels\n", "line 1"),
         ] {
             let e = parse(text).unwrap_err().to_string();
             assert!(e.contains(needle), "{e} should mention {needle}");
+            assert!(e.contains("t.toml"), "{e}");
         }
     }
 }

@@ -32,6 +32,15 @@ pub enum Error {
     /// A parameter given to the library or on the command line is wrong.
     #[error("{0}")]
     Invalid(String),
+    /// A named parameter (`name`, as the library calls it) is out of its
+    /// bounds; callers that know where it came from (a flag, a config key)
+    /// say so instead.
+    #[error("{name} = {value}: {problem}")]
+    Parameter {
+        name: &'static str,
+        value: String,
+        problem: String,
+    },
 }
 
 impl Error {
@@ -67,5 +76,14 @@ impl Error {
     /// A wrong parameter.
     pub fn invalid(problem: impl Into<String>) -> Self {
         Error::Invalid(problem.into())
+    }
+
+    /// Parameter `name` has the out-of-bounds `value`.
+    pub fn parameter(name: &'static str, value: impl ToString, problem: impl Into<String>) -> Self {
+        Error::Parameter {
+            name,
+            value: value.to_string(),
+            problem: problem.into(),
+        }
     }
 }

@@ -18,6 +18,7 @@
 
 pub mod config;
 pub mod error;
+pub mod estimate;
 pub mod extract;
 pub mod geom;
 pub mod hyper;

@@ -21,7 +21,8 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
 use crate::io::mesh_formats::{VtpEncoding, write_obj, write_stl_label_surface, write_vtp};
-use crate::io::mesh_ply::{write_junctions_ply, write_patch_ply, write_ply};
+use crate::io::mesh_ply::{write_junctions_ply, write_patch_plys_to, write_ply};
+use crate::io::temp;
 use crate::mesh::InterfaceMesh;
 
 /// Extra file formats besides PLY.
@@ -32,104 +33,428 @@ pub struct Formats {
     pub stl: bool,
 }
 
-/// A name safe in file names: letters, digits, `-`, `_`, `.`; others become `_`.
+/// Longest name of a label in file names (bytes): with the other label's and
+/// the suffix, a patch file name stays far below the usual 255-byte limit.
+const MAX_NAME: usize = 100;
+
+/// A name safe in file names: letters, digits, `-`, `.` and single `_`s;
+/// anything else becomes `_`, runs of `_` one `_` (so that `__` separates
+/// the two labels of a patch name unambiguously), no `_` or `.` at either
+/// end, at most [`MAX_NAME`] bytes. Not unique: see [`label_file_names`].
 pub fn file_safe(name: &str) -> String {
-    let s: String = name
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || "-_.".contains(c) {
-                c
-            } else {
-                '_'
+    let mut s = String::with_capacity(name.len());
+    for c in name.chars() {
+        let c = if c.is_ascii_alphanumeric() || "-.".contains(c) {
+            c
+        } else {
+            '_'
+        };
+        if !(c == '_' && s.ends_with('_')) {
+            s.push(c);
+        }
+    }
+    let mut s = s.trim_matches(|c| c == '_' || c == '.').to_string();
+    s.truncate(MAX_NAME);
+    let s = s.trim_end_matches(['_', '.']).to_string();
+    if s.is_empty() { "_".to_string() } else { s }
+}
+
+/// Makes `names` unique, ignoring case (file systems that do): every name
+/// that occurs more than once gets its `suffixes` entry appended (the
+/// suffixes differ from one another), until none repeats; a last resort puts
+/// the (unique) index in front.
+fn make_unique(mut names: Vec<String>, suffixes: &[String]) -> Vec<String> {
+    use std::collections::HashMap;
+    for _ in 0..4 {
+        let mut seen: HashMap<String, usize> = HashMap::new();
+        for n in &names {
+            *seen.entry(n.to_lowercase()).or_default() += 1;
+        }
+        let mut changed = false;
+        for (n, suffix) in names.iter_mut().zip(suffixes) {
+            if seen[&n.to_lowercase()] > 1 {
+                n.push_str(suffix);
+                changed = true;
             }
+        }
+        if !changed {
+            return names;
+        }
+    }
+    names
+        .into_iter()
+        .enumerate()
+        .map(|(i, n)| format!("{i}-{n}"))
+        .collect()
+}
+
+/// File names of the labels (by dense id), unique: the file-safe name, and
+/// where two labels' names collide (`a/b` and `a_b`; a label named `label3`
+/// and label 3 without a name; `LV` and `lv`), `-<value>` appended.
+pub fn label_file_names(mesh: &InterfaceMesh) -> Vec<String> {
+    let names = (0..mesh.labels.len())
+        .map(|l| file_safe(&mesh.label_name(l as u16)))
+        .collect();
+    let values: Vec<String> = mesh
+        .labels
+        .iter()
+        .map(|l| format!("-{}", l.value))
+        .collect();
+    make_unique(names, &values)
+}
+
+/// Relative paths of the patches' files, unique:
+/// `patches/<name_a>__<name_b>.ply` with the names of [`label_file_names`]
+/// (which hold no `__`, so no two label pairs give the same name).
+pub fn patch_paths(mesh: &InterfaceMesh) -> Vec<PathBuf> {
+    let labels = label_file_names(mesh);
+    let names: Vec<String> = mesh
+        .patches
+        .iter()
+        .map(|p| {
+            format!(
+                "{}__{}",
+                labels[p.labels[0] as usize], labels[p.labels[1] as usize]
+            )
         })
         .collect();
-    if s.is_empty() || s.starts_with('.') {
-        format!("_{s}")
-    } else {
-        s
+    // unique already; the suffixes only guard against what the argument missed
+    let suffixes: Vec<String> = mesh
+        .patches
+        .iter()
+        .map(|p| {
+            format!(
+                "-{}_{}",
+                mesh.label_value(p.labels[0]),
+                mesh.label_value(p.labels[1])
+            )
+        })
+        .collect();
+    make_unique(names, &suffixes)
+        .into_iter()
+        .map(|n| PathBuf::from("patches").join(format!("{n}.ply")))
+        .collect()
+}
+
+/// Relative path of one patch's file (see [`patch_paths`]; computing all of
+/// them once is cheaper when there are many).
+pub fn patch_path(mesh: &InterfaceMesh, patch: usize) -> PathBuf {
+    patch_paths(mesh).swap_remove(patch)
+}
+
+/// The files of the run's output directory that mark it as septa's: one of
+/// them, with a `septa` version and the `files` septa wrote there, must be in
+/// any directory that `--force` replaces.
+const MARKERS: [&str; 2] = ["manifest.json", "summary.json"];
+
+/// The longest file name most file systems take (bytes).
+const NAME_MAX: usize = 255;
+
+/// An output directory: checked before the work starts, written all at once
+/// at the end (see the module docs).
+#[derive(Clone, Debug)]
+pub struct OutDir {
+    path: PathBuf,
+    force: bool,
+    inputs: Vec<PathBuf>,
+}
+
+impl OutDir {
+    /// `path`, to be replaced if it exists only with `force` (and only if
+    /// septa wrote it).
+    pub fn new(path: impl Into<PathBuf>, force: bool) -> Self {
+        OutDir {
+            path: path.into(),
+            force,
+            inputs: Vec::new(),
+        }
+    }
+
+    /// A file the run reads: an existing OUTDIR that holds it is never
+    /// replaced.
+    pub fn protect(&mut self, input: impl Into<PathBuf>) {
+        self.inputs.push(input.into());
+    }
+
+    /// The directory.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn parent(&self) -> PathBuf {
+        match self.path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        }
+    }
+
+    /// Everything that can be checked before the work starts: the name, an
+    /// existing directory (only replaced with `force`, only if septa wrote
+    /// it, never if it holds a file the run reads), and that a directory can
+    /// be created beside it (permissions, read-only file systems, names).
+    pub fn check(&self) -> Result<()> {
+        let name = self
+            .path
+            .file_name()
+            .ok_or_else(|| Error::input(&self.path, "is not a directory name"))?;
+        if name.len() > NAME_MAX {
+            return Err(Error::input(
+                &self.path,
+                format!(
+                    "the name is {} bytes long: file systems take at most {NAME_MAX}",
+                    name.len()
+                ),
+            ));
+        }
+        if std::fs::symlink_metadata(&self.path).is_ok() {
+            self.check_replaceable()?;
+        }
+        self.probe()
+    }
+
+    /// The rules for replacing an existing OUTDIR.
+    fn check_replaceable(&self) -> Result<()> {
+        let meta = std::fs::symlink_metadata(&self.path).map_err(|e| Error::io(&self.path, e))?;
+        if meta.file_type().is_symlink() {
+            return Err(Error::input(
+                &self.path,
+                "exists and is a symbolic link: give a directory septa may create, or the directory itself",
+            ));
+        }
+        if !meta.is_dir() {
+            return Err(Error::input(&self.path, "exists and is not a directory"));
+        }
+        if !self.force {
+            return Err(Error::input(
+                &self.path,
+                "exists already: choose another output directory, or pass --force to replace \
+                 it (only an output directory septa wrote is replaced)",
+            ));
+        }
+        let tree = walk(&self.path)?;
+        self.check_no_input_inside(&tree)?;
+        check_written_by_septa(&self.path, &tree)
+    }
+
+    /// No file the run reads may be inside the directory to be replaced
+    /// (by path, through symbolic links, or as a hard link).
+    fn check_no_input_inside(&self, tree: &[Entry]) -> Result<()> {
+        let Ok(dir) = self.path.canonicalize() else {
+            return Ok(());
+        };
+        for input in &self.inputs {
+            let inside = input.canonicalize().is_ok_and(|i| i.starts_with(&dir))
+                || same_file_in(tree, input);
+            if inside {
+                return Err(Error::input(
+                    &self.path,
+                    format!(
+                        "holds {}, which this run reads: refusing to replace it (choose another output directory)",
+                        input.display()
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Creates and removes a temporary directory where OUTDIR will be
+    /// created (or in the nearest existing folder above), so that a
+    /// read-only or missing destination fails now, not after the work.
+    fn probe(&self) -> Result<()> {
+        let parent = self.parent();
+        let mut at = parent.as_path();
+        while std::fs::symlink_metadata(at).is_err() {
+            match at.parent() {
+                Some(p) if !p.as_os_str().is_empty() => at = p,
+                _ => {
+                    at = Path::new(".");
+                    break;
+                }
+            }
+        }
+        if !at.is_dir() {
+            return Err(Error::input(
+                &self.path,
+                format!("cannot be created: {} is not a directory", at.display()),
+            ));
+        }
+        let probe = temp::create_dir(at).map_err(|e| match e {
+            Error::Io { source, .. } => Error::input(
+                &self.path,
+                format!(
+                    "cannot be written: creating a directory in {} fails: {source}",
+                    at.display()
+                ),
+            ),
+            other => other,
+        })?;
+        probe.remove();
+        Ok(())
+    }
+
+    /// Fills a temporary directory beside OUTDIR with `fill`, syncs it, and
+    /// puts it in place of OUTDIR (replacing an old one only as
+    /// [`OutDir::check`] allows, checked again now). On any error, or when
+    /// the process is stopped by a signal, the temporary directory is
+    /// removed and OUTDIR is left as it was.
+    pub fn write<T>(&self, fill: impl FnOnce(&Path) -> Result<T>) -> Result<T> {
+        let parent = self.parent();
+        std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
+        temp::sweep_stale(&parent);
+        let tmp = temp::create_dir(&parent)?;
+        let filled = fill(tmp.path()).and_then(|v| crate::io::sync_tree(tmp.path()).map(|()| v));
+        let value = match filled {
+            Ok(v) => v,
+            Err(e) => {
+                tmp.remove();
+                return Err(e);
+            }
+        };
+        let old = if std::fs::symlink_metadata(&self.path).is_ok() {
+            if let Err(e) = self.check_replaceable() {
+                tmp.remove();
+                return Err(e);
+            }
+            Some(temp::temp_path(&parent, temp::Kind::Old))
+        } else {
+            None
+        };
+        if let Some(old) = temp::replace_with(tmp, &self.path, old.as_deref())? {
+            old.remove();
+        }
+        crate::io::sync_dir(&parent)?;
+        Ok(value)
     }
 }
 
-/// Relative path of a patch's file: `patches/<name_a>__<name_b>.ply`.
-pub fn patch_path(mesh: &InterfaceMesh, patch: usize) -> PathBuf {
-    let [a, b] = mesh.patches[patch].labels;
-    PathBuf::from("patches").join(format!(
-        "{}__{}.ply",
-        file_safe(&mesh.label_name(a)),
-        file_safe(&mesh.label_name(b))
-    ))
+/// One file or directory below an output directory.
+struct Entry {
+    /// Relative path, `/`-separated (as in the manifest's `files`).
+    rel: String,
+    kind: EntryKind,
+    meta: std::fs::Metadata,
 }
 
-/// Checks that `outdir` may be written: it must not exist (unless `force`) and
-/// must not contain `input`.
-pub fn check_outdir(outdir: &Path, input: Option<&Path>, force: bool) -> Result<()> {
-    if outdir.exists() {
-        if !outdir.is_dir() {
-            return Err(Error::input(outdir, "exists and is not a directory"));
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum EntryKind {
+    File,
+    Dir,
+    Other,
+}
+
+/// Everything below `dir` (symbolic links not followed).
+fn walk(dir: &Path) -> Result<Vec<Entry>> {
+    let mut out = Vec::new();
+    let mut stack = vec![(dir.to_path_buf(), String::new())];
+    while let Some((d, prefix)) = stack.pop() {
+        for e in std::fs::read_dir(&d).map_err(|e| Error::io(&d, e))? {
+            let e = e.map_err(|e| Error::io(&d, e))?;
+            let meta =
+                std::fs::symlink_metadata(e.path()).map_err(|err| Error::io(e.path(), err))?;
+            let rel = format!("{prefix}{}", e.file_name().to_string_lossy());
+            let kind = if meta.is_dir() {
+                stack.push((e.path(), format!("{rel}/")));
+                EntryKind::Dir
+            } else if meta.is_file() {
+                EntryKind::File
+            } else {
+                EntryKind::Other
+            };
+            out.push(Entry { rel, kind, meta });
         }
-        if !force {
+    }
+    Ok(out)
+}
+
+/// Whether `input` is the same file (device and inode) as a file of `tree`.
+#[cfg(unix)]
+fn same_file_in(tree: &[Entry], input: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(m) = std::fs::metadata(input) else {
+        return false;
+    };
+    tree.iter()
+        .any(|e| e.kind == EntryKind::File && e.meta.dev() == m.dev() && e.meta.ino() == m.ino())
+}
+
+#[cfg(not(unix))]
+fn same_file_in(_tree: &[Entry], _input: &Path) -> bool {
+    false
+}
+
+/// The `files` list of a septa marker file in `dir`, if there is one.
+fn septa_files(dir: &Path) -> Option<(String, Vec<String>)> {
+    MARKERS.iter().find_map(|m| {
+        let bytes = std::fs::read(dir.join(m)).ok()?;
+        let j: serde_json::Value = serde_json::from_slice(&bytes).ok()?;
+        j.get("septa")?.as_str()?;
+        let files = j.get("files")?.as_array()?;
+        let files = files
+            .iter()
+            .map(|f| f.as_str().map(str::to_string))
+            .collect::<Option<_>>()?;
+        Some((m.to_string(), files))
+    })
+}
+
+/// Only a directory that septa wrote is replaced, and only when it holds
+/// nothing else: every file in it must be listed in its marker.
+fn check_written_by_septa(dir: &Path, tree: &[Entry]) -> Result<()> {
+    let Some((marker, files)) = septa_files(dir) else {
+        return Err(Error::input(
+            dir,
+            "was not written by septa (it has no manifest.json or summary.json of septa's listing \
+             its files): --force replaces only septa's own output directories; choose another \
+             output directory or remove it yourself",
+        ));
+    };
+    let listed: std::collections::HashSet<&str> = files.iter().map(String::as_str).collect();
+    for e in tree {
+        let ours = match e.kind {
+            EntryKind::Dir => true,
+            EntryKind::File => e.rel == marker || listed.contains(e.rel.as_str()),
+            EntryKind::Other => false,
+        };
+        if !ours {
             return Err(Error::input(
-                outdir,
-                "exists already: choose another output directory or pass --force to replace it",
+                dir,
+                format!(
+                    "holds {}, which septa did not write (it is not in {marker}): --force will not \
+                     delete it; move it away or choose another output directory",
+                    e.rel
+                ),
             ));
-        }
-        if let Some(input) = input {
-            let (o, i) = (outdir.canonicalize(), input.canonicalize());
-            if let (Ok(o), Ok(i)) = (o, i) {
-                if i.starts_with(&o) {
-                    return Err(Error::input(
-                        outdir,
-                        format!(
-                            "contains the input file {}: refusing to replace it",
-                            input.display()
-                        ),
-                    ));
-                }
-            }
         }
     }
     Ok(())
 }
 
+/// Checks that `outdir` may be written (see [`OutDir::check`]); `input` is
+/// a file the run reads.
+pub fn check_outdir(outdir: &Path, input: Option<&Path>, force: bool) -> Result<()> {
+    let mut o = OutDir::new(outdir, force);
+    if let Some(i) = input {
+        o.protect(i);
+    }
+    o.check()
+}
+
 /// Writes all files of an extraction; `manifest` is completed with the list of
 /// files and written last. Returns the relative paths written.
 pub fn write_outdir(
-    outdir: &Path,
+    outdir: &OutDir,
     mesh: &InterfaceMesh,
     formats: Formats,
     mut manifest: serde_json::Value,
 ) -> Result<Vec<PathBuf>> {
-    write_dir_atomically(outdir, |tmp| write_files(tmp, mesh, formats, &mut manifest))
+    outdir.write(|tmp| write_files(tmp, mesh, formats, &mut manifest))
 }
 
 /// Fills a temporary directory beside `outdir` with `fill`, then moves it to
-/// `outdir` (replacing an old one); on any error the temporary directory is
-/// removed and `outdir` is left as it was.
+/// `outdir`, which must not exist (see [`OutDir::write`] to replace one).
 pub fn write_dir_atomically<T>(outdir: &Path, fill: impl FnOnce(&Path) -> Result<T>) -> Result<T> {
-    let parent = match outdir.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
-    let name = outdir
-        .file_name()
-        .ok_or_else(|| Error::input(outdir, "is not a directory name"))?
-        .to_string_lossy()
-        .into_owned();
-    let tmp = parent.join(format!(".{name}.tmp-septa-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&tmp);
-    let result = std::fs::create_dir_all(&tmp)
-        .map_err(|e| Error::io(&tmp, e))
-        .and_then(|_| fill(&tmp))
-        .and_then(|value| {
-            swap_into_place(&tmp, outdir, &parent, &name)?;
-            Ok(value)
-        });
-    if result.is_err() {
-        let _ = std::fs::remove_dir_all(&tmp);
-    }
-    result
+    OutDir::new(outdir, false).write(fill)
 }
 
 fn write_files(
@@ -141,11 +466,10 @@ fn write_files(
     std::fs::create_dir_all(dir.join("patches")).map_err(|e| Error::io(dir, e))?;
     let mut files = vec![PathBuf::from("interfaces.ply")];
     write_ply(&dir.join("interfaces.ply"), mesh)?;
-    for p in 0..mesh.patches.len() {
-        let rel = patch_path(mesh, p);
-        write_patch_ply(&dir.join(&rel), mesh, p as u32)?;
-        files.push(rel);
-    }
+    let paths = patch_paths(mesh);
+    let written = write_patch_plys_to(mesh, |p| dir.join(&paths[p]))?;
+    debug_assert_eq!(written, paths.len());
+    files.extend(paths);
     write_junctions_ply(&dir.join("junctions.ply"), mesh)?;
     files.push("junctions.ply".into());
     if formats.obj {
@@ -158,20 +482,15 @@ fn write_files(
     }
     if formats.stl {
         std::fs::create_dir_all(dir.join("labels")).map_err(|e| Error::io(dir, e))?;
+        let names = label_file_names(mesh);
         for l in mesh.labels_with_patches() {
-            let rel =
-                PathBuf::from("labels").join(format!("{}.stl", file_safe(&mesh.label_name(l))));
+            let rel = PathBuf::from("labels").join(format!("{}.stl", names[l as usize]));
             write_stl_label_surface(&dir.join(&rel), mesh, l)?;
             files.push(rel);
         }
     }
     files.push("manifest.json".into());
-    manifest["files"] = serde_json::json!(
-        files
-            .iter()
-            .map(|f| f.display().to_string())
-            .collect::<Vec<_>>()
-    );
+    manifest["files"] = serde_json::json!(files.iter().map(|f| rel_string(f)).collect::<Vec<_>>());
     let mut json =
         serde_json::to_vec_pretty(manifest).map_err(|e| Error::invalid(e.to_string()))?;
     json.push(b'\n');
@@ -179,15 +498,10 @@ fn write_files(
     Ok(files)
 }
 
-/// Moves the finished temporary directory to `outdir`, replacing an old one.
-fn swap_into_place(tmp: &Path, outdir: &Path, parent: &Path, name: &str) -> Result<()> {
-    if outdir.exists() {
-        let old = parent.join(format!(".{name}.old-septa-{}", std::process::id()));
-        std::fs::rename(outdir, &old).map_err(|e| Error::io(outdir, e))?;
-        std::fs::rename(tmp, outdir).map_err(|e| Error::io(outdir, e))?;
-        std::fs::remove_dir_all(&old).map_err(|e| Error::io(&old, e))?;
-    } else {
-        std::fs::rename(tmp, outdir).map_err(|e| Error::io(outdir, e))?;
-    }
-    Ok(())
+/// A relative path as the manifest lists it: `/`-separated on every system.
+pub fn rel_string(p: &Path) -> String {
+    p.components()
+        .map(|c| c.as_os_str().to_string_lossy())
+        .collect::<Vec<_>>()
+        .join("/")
 }

@@ -1049,14 +1049,16 @@ fn existing_outdir_needs_force_and_never_holds_the_input() {
     std::fs::create_dir(&out).unwrap();
     std::fs::write(out.join("mine.txt"), "keep me").unwrap();
     let data_path = data("heart_phantom_48.nii.gz");
-    let run = |force: bool| {
-        let mut args = vec!["extract", p(&data_path), "-o", p(&out), "-q", "--no-remesh"];
+    let run = |out: &Path, force: bool| {
+        let mut args = vec!["extract", p(&data_path), "-o", p(out), "-q", "--no-remesh"];
         if force {
             args.push("--force");
         }
         septa(&args)
     };
-    fails(run(false), &["--force", "out"]);
+    fails(run(&out, false), &["--force", "out"]);
+    // a directory septa did not write is never replaced, --force or not
+    fails(run(&out, true), &["out", "not written by septa"]);
     assert_eq!(
         std::fs::read_to_string(out.join("mine.txt")).unwrap(),
         "keep me"
@@ -1065,26 +1067,36 @@ fn existing_outdir_needs_force_and_never_holds_the_input() {
     // nothing left beside it either (no temporary directory)
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 
-    ok(run(true));
-    assert!(!out.join("mine.txt").exists());
-    assert_eq!(manifest(&out)["validation"]["passed"], true);
-    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    // septa's own output is replaced with --force
+    let ours = dir.path().join("ours");
+    ok(run(&ours, false));
+    let first = manifest(&ours);
+    ok(run(&ours, true));
+    assert_eq!(manifest(&ours)["validation"]["passed"], true);
+    assert_eq!(manifest(&ours)["files"], first["files"]);
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+
+    // ... but not when something was added to it
+    std::fs::write(ours.join("notes.txt"), "mine").unwrap();
+    fails(run(&ours, true), &["notes.txt", "septa did not write"]);
+    assert!(ours.join("notes.txt").exists());
+    std::fs::remove_file(ours.join("notes.txt")).unwrap();
 
     // an output directory holding the input is refused even with --force
-    let input = out.join("in.nii.gz");
+    let input = ours.join("in.nii.gz");
     std::fs::copy(&data_path, &input).unwrap();
-    let before = walk(&out).len();
-    let o = septa(["extract", p(&input), "-o", p(&out), "--force", "-q"]);
+    let before = walk(&ours).len();
+    let o = septa(["extract", p(&input), "-o", p(&ours), "--force", "-q"]);
     fails(o, &["in.nii.gz"]);
     assert!(input.exists());
-    assert_eq!(walk(&out).len(), before);
+    assert_eq!(walk(&ours).len(), before);
     // ... also when the input lies deeper inside it
-    let sub = out.join("sub");
+    let sub = ours.join("sub");
     std::fs::create_dir(&sub).unwrap();
     let deep = sub.join("deep.nii.gz");
     std::fs::copy(&data_path, &deep).unwrap();
     fails(
-        septa(["extract", p(&deep), "-o", p(&out), "--force", "-q"]),
+        septa(["extract", p(&deep), "-o", p(&ours), "--force", "-q"]),
         &["deep.nii.gz"],
     );
     assert!(deep.exists());

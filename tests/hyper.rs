@@ -680,6 +680,7 @@ fn bad_input_gets_clear_errors() {
         geometry: Geometry::identity(),
         time_step: None,
         path: "vol.nii".into(),
+        sources: Vec::new(),
     };
     let o = HyperOptions::new(1.0);
     let e = hypersurface_image(&three_d, None, &o)

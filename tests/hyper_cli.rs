@@ -47,6 +47,7 @@ fn frame_of(img: &Image, k: usize) -> Image {
         geometry: img.geometry,
         time_step: None,
         path: format!("frame{k}").into(),
+        sources: Vec::new(),
     }
 }
 
@@ -189,6 +190,7 @@ fn bad_input_gets_clear_errors() {
         geometry: Geometry::identity(),
         time_step: None,
         path: "x".into(),
+        sources: Vec::new(),
     };
     let vol3 = d.join("vol3.nii");
     septa::io::nifti::write_image(&vol3, &three).unwrap();

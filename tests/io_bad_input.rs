@@ -449,3 +449,79 @@ fn gzip(bytes: &[u8]) -> Vec<u8> {
     e.write_all(bytes).unwrap();
     e.finish().unwrap()
 }
+
+fn gzip_stored(bytes: &[u8]) -> Vec<u8> {
+    use std::io::Write;
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::none());
+    e.write_all(bytes).unwrap();
+    e.finish().unwrap()
+}
+
+/// Every way a gzip file can be damaged without the DEFLATE data itself
+/// failing: gzip readers check the CRC-32 and ISIZE of each member and the
+/// whole trailer, and so must septa (these all read "fine" before).
+fn damaged_gzips(plain: &[u8]) -> Vec<(&'static str, Vec<u8>, &'static str)> {
+    let good = gzip_stored(plain);
+    let n = good.len();
+    // a stored block holds the bytes as they are: flip the last voxel
+    let mut voxel = good.clone();
+    voxel[n - 9] ^= 0xc8;
+    let mut crc = good.clone();
+    crc[n - 8] ^= 1;
+    let mut isize = good.clone();
+    isize[n - 1] ^= 1;
+    let mut junk = good.clone();
+    junk.extend_from_slice(b"junk after the stream");
+    let mut zeros = good.clone();
+    zeros.extend_from_slice(&[0; 16]);
+    vec![
+        ("voxel", voxel, "corrupt gzip data"),
+        ("crc", crc, "corrupt gzip data"),
+        ("isize", isize, "corrupt gzip data"),
+        ("trailer", good[..n - 3].to_vec(), "cut short"),
+        ("no_trailer", good[..n - 8].to_vec(), "cut short"),
+        ("junk", junk, "trailing junk"),
+        ("zeros", zeros, "trailing junk"),
+    ]
+}
+
+#[test]
+fn gzip_checksums_and_trailer_are_verified_nifti() {
+    let dir = tmp();
+    let b = valid_nii(dir.path());
+    let ok = write(dir.path(), "ok.nii.gz", &gzip_stored(&b));
+    assert!(read_label_volume(&ok, &no_opts()).is_ok());
+    for (name, bytes, needle) in damaged_gzips(&b) {
+        let path = write(dir.path(), &format!("{name}.nii.gz"), &bytes);
+        expect_error(&path, &no_opts(), &[needle]);
+    }
+}
+
+#[test]
+fn gzip_checksums_and_trailer_are_verified_nrrd() {
+    let dir = tmp();
+    let header = b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 3 2\nencoding: gzip\n\n";
+    let voxels: Vec<u8> = (0..24).map(|i| (i % 3) as u8).collect();
+    let ok = write(
+        dir.path(),
+        "ok.nrrd",
+        &[&header[..], &gzip_stored(&voxels)].concat(),
+    );
+    assert!(read_label_volume(&ok, &no_opts()).is_ok());
+    for (name, bytes, needle) in damaged_gzips(&voxels) {
+        let path = write(
+            dir.path(),
+            &format!("{name}.nrrd"),
+            &[&header[..], &bytes].concat(),
+        );
+        expect_error(&path, &no_opts(), &[needle]);
+    }
+    // more voxel data than the sizes say: sizes 2 3 2 on 24 bytes
+    let small = b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 3 2\nencoding: gzip\n\n";
+    let path = write(
+        dir.path(),
+        "sizes.nrrd",
+        &[&small[..], &gzip_stored(&voxels)].concat(),
+    );
+    expect_error(&path, &no_opts(), &["more than the 12 bytes expected"]);
+}

@@ -282,6 +282,7 @@ fn bad_input_is_an_error() {
         geometry: Geometry::identity(),
         time_step: None,
         path: "four.nii".into(),
+        sources: Vec::new(),
     };
     let e = septa::iso::iso_surface_image(&img, &IsoOptions::new(1.0)).unwrap_err();
     assert!(e.to_string().contains("4-D"), "{e}");

@@ -45,7 +45,8 @@ fn run_all(block: [usize; 3], max_blocks: usize) -> usize {
     let n = block[0] * block[1] * block[2];
     let parts = set_partitions(n, max_blocks);
     use rayon::prelude::*;
-    let results: Vec<(usize, Vec<(Vec<i64>, bool, septa::preprocess::Violation)>)> =
+    type Failure = (Vec<i64>, bool, septa::preprocess::Violation);
+    let results: Vec<(usize, Vec<Failure>)> =
         parts.par_iter().map(|p| run_partition(block, p)).collect();
     let cases = results.iter().map(|r| r.0).sum();
     let failures: Vec<_> = results.into_iter().flat_map(|r| r.1).collect();

@@ -10,7 +10,7 @@ use super::ui::{Ui, secs};
 use septa::Result;
 use septa::io::mesh_ply::read_ply;
 use septa::mesh::quality::{QualityOptions, quality};
-use septa::mesh::validate::{Options, validate};
+use septa::mesh::validate::{Check, Options, validate};
 
 #[derive(Args, Debug)]
 pub struct CheckArgs {
@@ -44,7 +44,7 @@ pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
         ui.warn(note);
     }
     let stage = ui.stage("validating");
-    let report = validate(
+    let mut report = validate(
         &ply.mesh,
         &Options {
             intersections: args.intersections,
@@ -52,6 +52,12 @@ pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
         },
     );
     let t_check = stage.done();
+    // a face of 0, 1 or 2 vertices is no surface: the file fails the check
+    let mut short = Check::new("faces of at least three vertices");
+    for f in &ply.short_faces {
+        short.fail(|| format!("face {f}"));
+    }
+    report.checks.insert(0, short);
     let quality = if args.reference.is_some() || args.target_edge.is_some() {
         let reference = match &args.reference {
             Some(path) => Some(read_ply(path)?.mesh),

@@ -13,7 +13,7 @@ use septa::extract::{Decompose, ExtractOptions, Surface, extract, label_infos};
 use septa::mesh::quality::{QualityOptions, quality};
 use septa::mesh::stats::patch_stats;
 use septa::mesh::validate::{Options, validate};
-use septa::output::{Formats, check_outdir, patch_path, write_outdir};
+use septa::output::{Formats, OutDir, patch_paths, rel_string, write_outdir};
 use septa::preprocess::preprocess;
 use septa::remesh::{RemeshParams, remesh};
 
@@ -84,6 +84,80 @@ pub struct ExtractArgs {
     /// Split/collapse/flip/relax iterations of the remesher (default 8).
     #[arg(long, value_name = "N")]
     pub remesh_iterations: Option<u32>,
+    /// Memory the run may use (e.g. 8G, 500M; default: what the system has
+    /// available). The work is estimated before preprocessing and before
+    /// extracting; a run that would need more is refused.
+    #[arg(long, value_name = "SIZE", value_parser = parse_size)]
+    pub max_memory: Option<u64>,
+}
+
+/// `--max-memory`: bytes, with an optional K, M, G or T (powers of 1000; a
+/// trailing B or iB is accepted too).
+fn parse_size(s: &str) -> std::result::Result<u64, String> {
+    let t = s.trim().to_ascii_uppercase();
+    let t = t
+        .strip_suffix("IB")
+        .or_else(|| t.strip_suffix('B'))
+        .unwrap_or(&t);
+    let (num, unit) = match t.char_indices().find(|(_, c)| c.is_ascii_alphabetic()) {
+        Some((i, _)) => (&t[..i], &t[i..]),
+        None => (t, ""),
+    };
+    let scale = match unit {
+        "" => 1.0,
+        "K" => 1e3,
+        "M" => 1e6,
+        "G" => 1e9,
+        "T" => 1e12,
+        _ => return Err(format!("`{s}`: use a size like 8G, 500M or 2000000000")),
+    };
+    match num.trim().parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok((x * scale) as u64),
+        _ => Err(format!("`{s}`: use a size like 8G, 500M or 2000000000")),
+    }
+}
+
+/// The memory budget: `--max-memory`, else what the system has available.
+fn budget(args: &ExtractArgs) -> Option<(u64, &'static str)> {
+    match args.max_memory {
+        Some(m) => Some((m, "the --max-memory limit")),
+        None => septa::estimate::available_memory().map(|m| (m, "the memory available")),
+    }
+}
+
+/// Refuses a stage that would need more memory than the budget, before it
+/// starts, with what it needs and what to change.
+fn check_memory(
+    args: &ExtractArgs,
+    work: &septa::estimate::Work,
+    stage: &str,
+    needed: u64,
+    remedy: &str,
+) -> Result<()> {
+    use septa::estimate::human_bytes;
+    let Some((budget, what)) = budget(args) else {
+        return Ok(());
+    };
+    if needed <= budget {
+        return Ok(());
+    }
+    let hint = if work.looks_like_intensity() {
+        format!("; {}", super::info::intensity_note(work))
+    } else {
+        String::new()
+    };
+    Err(septa::Error::input(
+        &args.input.volume,
+        format!(
+            "{stage} would need about {} of memory ({} labels, {} boundary faces, {} critical \
+             elements), more than {what} ({}){hint}; {remedy}to try anyway, raise --max-memory",
+            human_bytes(needed),
+            work.labels,
+            count(work.boundary_faces),
+            count(work.critical_edges + work.critical_vertices),
+            human_bytes(budget),
+        ),
+    ))
 }
 
 /// Remeshing parameters from the command line, else the config, else the defaults.
@@ -118,23 +192,116 @@ fn remesh_params(
     })
 }
 
+/// Checks the remeshing parameters against the volume; an error names the
+/// flag, or the config file and key, the bad value came from.
+fn check_remesh(
+    params: &RemeshParams,
+    args: &ExtractArgs,
+    config: &septa::config::Config,
+    v: &septa::volume::LabelVolume,
+) -> Result<()> {
+    let g = v.geometry();
+    let d = v.dims();
+    let n = glam::DVec3::new(d.nx as f64, d.ny as f64, d.nz as f64);
+    let half = glam::DVec3::splat(0.5);
+    let extent = (g.index_to_physical(n - half) - g.index_to_physical(-half)).length();
+    params
+        .validate_scale(g, extent)
+        .map_err(|e| blame(e, args, config))
+}
+
+/// The PLY files store label values as 32-bit ints: refuse larger ones
+/// now, not after the extraction.
+fn check_label_values(args: &ExtractArgs, v: &septa::volume::LabelVolume) -> Result<()> {
+    match v.values().iter().find(|&&x| i32::try_from(x).is_err()) {
+        Some(x) => Err(septa::Error::input(
+            &args.input.volume,
+            format!(
+                "label value {x} does not fit the 32-bit label_a/label_b properties of the PLY \
+                 output (−2147483648 to 2147483647): renumber the labels"
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// Turns a library parameter error into one about the flag or config key.
+fn blame(e: septa::Error, args: &ExtractArgs, config: &septa::config::Config) -> septa::Error {
+    let septa::Error::Parameter {
+        name,
+        value,
+        problem,
+    } = e
+    else {
+        return e;
+    };
+    let (flag, given) = match name {
+        "target_edge" => ("--target-edge", args.target_edge.is_some()),
+        "smooth_iterations" => ("--smooth-iterations", args.smooth_iterations.is_some()),
+        "max_displacement" => ("--max-displacement", args.max_displacement.is_some()),
+        "iterations" => ("--remesh-iterations", args.remesh_iterations.is_some()),
+        _ => {
+            return septa::Error::Parameter {
+                name,
+                value,
+                problem,
+            };
+        }
+    };
+    match (&config.path, given) {
+        (_, true) => septa::Error::invalid(format!("{flag} {value}: {problem}")),
+        (Some(path), false) => septa::Error::config(
+            path,
+            format!("remesh.{name}"),
+            format!("{value}: {problem}"),
+        ),
+        (None, false) => {
+            septa::Error::invalid(format!("the default {name} {value}: {problem}; set {flag}"))
+        }
+    }
+}
+
 pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
-    check_outdir(&args.output, Some(&args.input.volume), args.force)?;
+    // the destination is checked before any work, and again with every file
+    // the volume's header named (detached data) once it is read
+    let mut outdir = OutDir::new(&args.output, args.force);
+    outdir.protect(&args.input.volume);
+    if let Some(c) = &args.input.config {
+        outdir.protect(c);
+    }
+    outdir.check()?;
     let mut timings: Vec<(&str, Duration)> = Vec::new();
 
     let stage = ui.stage("reading volume");
     let loaded = load(&args.input, ui)?;
     timings.push(("read", stage.done()));
+    for s in &loaded.sources {
+        outdir.protect(s);
+    }
+    outdir.check()?;
     let v = &loaded.volume;
     let r = &loaded.resolved;
     let params = remesh_params(args, &loaded.config.remesh, v.geometry());
     if let Some(p) = &params {
-        p.validate()?;
+        check_remesh(p, args, &loaded.config, v)?;
     }
+    check_label_values(args, v)?;
+    let work = septa::estimate::estimate(v, septa::preprocess::subdivision_for(r) as u64);
+    if work.looks_like_intensity() {
+        ui.warn(super::info::intensity_note(&work));
+    }
+    check_memory(args, &work, "preprocessing", work.preprocess_bytes(), "")?;
 
     let stage = ui.stage("finding and fattening critical elements");
     let pre = preprocess(v, r);
     timings.push(("preprocess", stage.done()));
+    check_memory(
+        args,
+        &work,
+        "extracting",
+        work.extraction_bytes(pre.refined.refined_count() as u64),
+        "",
+    )?;
     if !pre.guarantee.passed() {
         ui.warn(format!(
             "preprocessing left {} critical configurations; the patches will not all be manifold (first: {:?})",
@@ -165,6 +332,13 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
 
     let (mesh, remeshed) = match params {
         Some(params) => {
+            let area = septa::estimate::surface_area(&mesh);
+            let needed = work.remesh_bytes(mesh.triangle_count() as u64, area, params.target_edge);
+            let remedy = format!(
+                "a longer --target-edge than {} mm makes fewer triangles; ",
+                params.target_edge
+            );
+            check_memory(args, &work, "remeshing", needed, &remedy)?;
             let stage = ui.stage(&format!(
                 "smoothing and remeshing to {:.2} mm edges",
                 params.target_edge
@@ -207,6 +381,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
 
     let stage = ui.stage("writing");
     let stats = patch_stats(&mesh);
+    let patch_files = patch_paths(&mesh);
     let counts = v.voxel_counts();
     let voxel_ml = v.geometry().voxel_volume_mm3() / 1000.0;
     let (nv, ne, nf) = pre.critical.counts();
@@ -250,7 +425,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
             "patch": i,
             "label_a": mesh.label_value(p.labels[0]), "label_b": mesh.label_value(p.labels[1]),
             "name_a": mesh.label_name(p.labels[0]), "name_b": mesh.label_name(p.labels[1]),
-            "file": patch_path(&mesh, i).display().to_string(),
+            "file": rel_string(&patch_files[i]),
             "stats": stats[i],
         })).collect::<Vec<_>>(),
         "junction_curves": mesh.junctions.iter().map(|c| serde_json::json!({
@@ -270,7 +445,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
         vtp: args.formats.contains(&FormatArg::Vtp),
         stl: args.formats.contains(&FormatArg::Stl),
     };
-    let files = write_outdir(&args.output, &mesh, formats, manifest)?;
+    let files = write_outdir(&outdir, &mesh, formats, manifest)?;
     timings.push(("write", stage.done()));
 
     summarize(
@@ -325,7 +500,7 @@ impl Kept {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
+#[allow(clippy::too_many_arguments)] // one summary of everything the run did
 fn summarize(
     ui: &Ui,
     args: &ExtractArgs,

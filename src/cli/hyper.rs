@@ -17,7 +17,7 @@ use septa::hyper::{
 use septa::io::{Image, ReadOptions, read_image};
 use septa::iso::Mode;
 use septa::mesh::validate::{Options, Report, validate};
-use septa::output::check_outdir;
+use septa::output::OutDir;
 use septa::{Error, Result};
 
 /// Most slices one run writes.
@@ -207,7 +207,11 @@ pub fn run(args: &HyperArgs, ui: &Ui) -> Result<ExitCode> {
     for input in args.inputs() {
         refuse_input_as_output(&args.output, input)?;
     }
-    check_outdir(&args.output, args.inputs().first().copied(), args.force)?;
+    let mut outdir = OutDir::new(&args.output, args.force);
+    for input in args.inputs().into_iter().chain(args.field.as_deref()) {
+        outdir.protect(input);
+    }
+    outdir.check()?;
 
     let stage = ui.stage("reading");
     let input = match &args.volume {
@@ -220,6 +224,15 @@ pub fn run(args: &HyperArgs, ui: &Ui) -> Result<ExitCode> {
         ),
     };
     let t_read = stage.done();
+    let read: Vec<&Image> = match &input {
+        Input::Volume(i) => vec![i],
+        Input::Frames(f) => f.iter().collect(),
+    };
+    for s in read.iter().flat_map(|i| &i.sources) {
+        outdir.protect(s);
+    }
+    outdir.check()?;
+    check_times(args, &input, &times)?;
 
     let stage = ui.stage("extracting the hypersurface");
     let h = match &input {
@@ -269,7 +282,7 @@ pub fn run(args: &HyperArgs, ui: &Ui) -> Result<ExitCode> {
     };
     let summary = summary_json(args, &input, &opts, &h, &manifold, &slices, &timings_so_far);
     write_outdir(
-        &args.output,
+        &outdir,
         args,
         &h,
         &opts,
@@ -301,6 +314,23 @@ pub fn run(args: &HyperArgs, ui: &Ui) -> Result<ExitCode> {
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Slice times must lie between the first frame and the last: beyond them
+/// there is no data, and a slice would be empty.
+fn check_times(args: &HyperArgs, input: &Input, times: &[f64]) -> Result<()> {
+    let (dims, _, file_dt) = input.describe();
+    let frames = dims.get(3).copied().unwrap_or(1);
+    let dt = args.time_step.or(file_dt).unwrap_or(1.0);
+    let last = (frames.saturating_sub(1)) as f64 * dt;
+    let (lo, hi) = (last.min(0.0), last.max(0.0));
+    match times.iter().find(|&&t| t < lo || t > hi) {
+        Some(t) => Err(Error::invalid(format!(
+            "slice time {t} lies outside the data: {frames} frames {dt} apart span {lo} to {hi} \
+             (--at-time and --times take times, not frame numbers)"
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// Reads `--field` and interpolates it onto the hypersurface.
@@ -363,7 +393,7 @@ fn slice_names(times: &[f64]) -> Vec<String> {
 /// Writes everything into a temporary directory beside OUTDIR, then renames it
 /// into place (replacing an old OUTDIR only with --force, checked before).
 fn write_outdir(
-    outdir: &Path,
+    outdir: &OutDir,
     args: &HyperArgs,
     h: &Hypersurface,
     opts: &HyperOptions,
@@ -371,15 +401,22 @@ fn write_outdir(
     slices: &[SliceOut],
     summary: &serde_json::Value,
 ) -> Result<()> {
-    septa::output::write_dir_atomically(outdir, |tmp| {
+    outdir.write(|tmp| {
+        let mut files = Vec::new();
         if !args.no_hypersurface {
             write_hypersurface_ply(&tmp.join("hypersurface.ply"), h, opts, values)?;
+            files.push("hypersurface.ply".to_string());
         }
         for s in slices {
             septa::io::mesh_ply::write_ply(&tmp.join(&s.file), &s.slice.mesh)?;
+            files.push(s.file.clone());
         }
+        files.push("summary.json".to_string());
+        // the list marks the directory as septa's, for a later --force
+        let mut summary = summary.clone();
+        summary["files"] = serde_json::json!(files);
         let mut json =
-            serde_json::to_vec_pretty(summary).map_err(|e| Error::invalid(e.to_string()))?;
+            serde_json::to_vec_pretty(&summary).map_err(|e| Error::invalid(e.to_string()))?;
         json.push(b'\n');
         septa::io::atomic_write(&tmp.join("summary.json"), &json)
     })

@@ -18,6 +18,16 @@ pub struct InfoArgs {
     pub json: bool,
 }
 
+/// What to say about a volume that looks like an intensity image.
+pub fn intensity_note(work: &septa::estimate::Work) -> String {
+    format!(
+        "this looks like an intensity image, not a label map: {} distinct values, {:.0} % of the \
+         voxel faces between different ones; for grayscale data use `septa iso VOLUME --iso VALUE`",
+        work.labels,
+        100.0 * work.boundary_share()
+    )
+}
+
 pub fn run(args: &InfoArgs, ui: &Ui) -> Result<ExitCode> {
     let loaded = load(&args.input, ui)?;
     let v = &loaded.volume;
@@ -40,6 +50,8 @@ pub fn run(args: &InfoArgs, ui: &Ui) -> Result<ExitCode> {
     }
     let outside = loaded.resolved.outside;
     let name = |id: u16| loaded.config.display_name(v.value(id));
+    let subdivision = septa::preprocess::subdivision_for(&loaded.resolved) as u64;
+    let work = septa::estimate::estimate(v, subdivision);
     if args.json {
         let labels: Vec<_> = (0..v.label_count())
             .map(|i| {
@@ -57,6 +69,9 @@ pub fn run(args: &InfoArgs, ui: &Ui) -> Result<ExitCode> {
             "extent_mm": {"min": lo.to_array(), "max": hi.to_array()},
             "outside": {"value": v.value(outside), "name": name(outside), "from_config": loaded.resolved.outside_from_config},
             "labels": labels,
+            "work": work,
+            "extract_memory_bytes": work.bytes(),
+            "looks_like_intensity": work.looks_like_intensity(),
         });
         println!("{}", serde_json::to_string_pretty(&j).expect("json"));
         return Ok(ExitCode::SUCCESS);
@@ -108,6 +123,20 @@ pub fn run(args: &InfoArgs, ui: &Ui) -> Result<ExitCode> {
             ]
         })
         .collect();
+    ui.say(format!(
+        "boundary     {} voxel faces between labels ({:.1} % of all), {} critical edges, {} critical vertices",
+        count(work.boundary_faces),
+        100.0 * work.boundary_share(),
+        count(work.critical_edges),
+        count(work.critical_vertices)
+    ));
+    ui.say(format!(
+        "extract      needs at most about {} of memory (without remeshing)",
+        septa::estimate::human_bytes(work.bytes())
+    ));
+    if work.looks_like_intensity() {
+        ui.warn(intensity_note(&work));
+    }
     ui.say(format!("labels       {}", v.label_count()));
     ui.say(table(
         &["value", "name", "voxels", "volume (mL)", "share"],

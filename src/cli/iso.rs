@@ -128,10 +128,15 @@ pub fn run(args: &IsoArgs, ui: &Ui) -> Result<ExitCode> {
     opts.check()?;
     refuse_input_as_output(&args.output, &args.volume)?;
     let format = MeshFormat::of(&args.output)?;
+    septa::io::check_writable(&args.output)?;
 
     let stage = ui.stage("reading volume");
     let image = read_image(&args.volume, &args.read_options()?)?;
     let t_read = stage.done();
+    let values = ValueStats::of(&image.samples);
+    for w in values.warnings(opts.iso) {
+        ui.warn(format!("{}: {w}", show(&args.volume)));
+    }
 
     let stage = ui.stage("extracting the iso-surface");
     let mut s = iso_surface_image(&image, &opts)?;
@@ -171,11 +176,7 @@ pub fn run(args: &IsoArgs, ui: &Ui) -> Result<ExitCode> {
     format.write(&args.output, &s.mesh)?;
     let t_write = stage.done();
 
-    let range = if s.mesh.triangle_count() == 0 {
-        value_range(&image.to_f64())
-    } else {
-        None
-    };
+    let range = values.range;
     let timings = Timings {
         read: t_read,
         extract,
@@ -297,14 +298,88 @@ pub(super) fn refuse_input_as_output(output: &Path, input: &Path) -> Result<()> 
     Ok(())
 }
 
-/// Smallest and largest finite sample, for the message about an empty surface.
-fn value_range(v: &[f64]) -> Option<(f64, f64)> {
-    v.iter()
-        .filter(|x| x.is_finite())
-        .fold(None, |acc, &x| match acc {
-            None => Some((x, x)),
-            Some((lo, hi)) => Some((lo.min(x), hi.max(x))),
-        })
+/// The range of the finite samples and the count of the others.
+struct ValueStats {
+    range: Option<(f64, f64)>,
+    nan: u64,
+    infinite: u64,
+}
+
+impl ValueStats {
+    fn of(s: &septa::io::Samples) -> Self {
+        use septa::io::Samples as S;
+        #[allow(clippy::unnecessary_cast)] // one cast for all ten types, f64 among them
+        match s {
+            S::U8(v) => Self::scan(v.iter().map(|&x| x as f64)),
+            S::I8(v) => Self::scan(v.iter().map(|&x| x as f64)),
+            S::U16(v) => Self::scan(v.iter().map(|&x| x as f64)),
+            S::I16(v) => Self::scan(v.iter().map(|&x| x as f64)),
+            S::U32(v) => Self::scan(v.iter().map(|&x| x as f64)),
+            S::I32(v) => Self::scan(v.iter().map(|&x| x as f64)),
+            S::U64(v) => Self::scan(v.iter().map(|&x| x as f64)),
+            S::I64(v) => Self::scan(v.iter().map(|&x| x as f64)),
+            S::F32(v) => Self::scan(v.iter().map(|&x| x as f64)),
+            S::F64(v) => Self::scan(v.iter().map(|&x| x as f64)),
+        }
+    }
+
+    fn scan(values: impl Iterator<Item = f64>) -> Self {
+        let mut out = ValueStats {
+            range: None,
+            nan: 0,
+            infinite: 0,
+        };
+        for x in values {
+            if x.is_nan() {
+                out.nan += 1;
+            } else if x.is_infinite() {
+                out.infinite += 1;
+            } else {
+                out.range = Some(match out.range {
+                    None => (x, x),
+                    Some((lo, hi)) => (lo.min(x), hi.max(x)),
+                });
+            }
+        }
+        out
+    }
+
+    /// What the user should know before trusting the surface: values that
+    /// are not numbers, and an iso value outside or at the edge of the data.
+    fn warnings(&self, iso: f64) -> Vec<String> {
+        let mut w = Vec::new();
+        if self.nan > 0 || self.infinite > 0 {
+            w.push(format!(
+                "{} samples are NaN and {} infinite: NaN and -inf count as outside, +inf as inside",
+                self.nan, self.infinite
+            ));
+        }
+        let Some((lo, hi)) = self.range else {
+            return w;
+        };
+        // within 1 % of the range from an end: the surface follows the
+        // background or the peak, not a structure
+        let edge = 0.01 * (hi - lo);
+        if iso <= lo {
+            w.push(format!(
+                "the iso value {iso} is at or below the smallest value {lo} (values {lo} to {hi}): \
+                 every voxel is inside"
+            ));
+        } else if iso > hi {
+            // (the summary says so: an empty surface)
+        } else if iso - lo <= edge {
+            w.push(format!(
+                "the iso value {iso} is at the bottom of the values ({lo} to {hi}): the surface \
+                 encloses every voxel above the minimum"
+            ));
+        } else if hi - iso <= edge {
+            w.push(format!(
+                "the iso value {iso} is at the top of the values ({lo} to {hi}): only the largest \
+                 values are inside"
+            ));
+        }
+        w
+    }
 }
 
 fn describe(opts: &IsoOptions) -> String {

@@ -126,12 +126,17 @@ pub struct Loaded {
     pub volume: LabelVolume,
     pub config: Config,
     pub resolved: Resolved,
+    /// Every file read: the volume's header and data files, the config.
+    pub sources: Vec<PathBuf>,
 }
 
 /// Reads the volume and the config and resolves one against the other.
 fn load(args: &VolumeArgs, ui: &ui::Ui) -> Result<Loaded> {
     let config = args.config()?;
-    let volume = septa::io::read_label_volume(&args.volume, &args.read_options()?)?;
+    let image = septa::io::read_image(&args.volume, &args.read_options()?)?;
+    let mut sources = image.sources.clone();
+    sources.extend(args.config.iter().cloned());
+    let volume = image.into_label_volume()?;
     let (volume, resolved) = config.resolve(volume)?;
     for w in &resolved.warnings {
         ui.warn(w);
@@ -140,6 +145,7 @@ fn load(args: &VolumeArgs, ui: &ui::Ui) -> Result<Loaded> {
         volume,
         config,
         resolved,
+        sources,
     })
 }
 
@@ -173,6 +179,10 @@ fn parse_dtype(s: &str) -> std::result::Result<DataType, String> {
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let ui = ui::Ui::new(cli.verbose, cli.quiet);
+    // temporary output is removed when the run is stopped (Ctrl-C, kill)
+    if let Err(e) = septa::io::temp::install_signal_cleanup() {
+        ui.warn(e.to_string());
+    }
     let result = match &cli.command {
         Command::Info(a) => info::run(a, &ui),
         Command::Phantom(a) => phantom::run(a, &ui),

@@ -127,7 +127,8 @@ fn face_outline(
         lat.of_fine_vertex(f)
     };
     // edges in order: (0,0)->(s,0) along b at c-low, (s,0)->(s,s) along c at b-high, ...
-    let sides: [((i32, i32), (i32, i32), usize, i32); 4] = [
+    type Side = ((i32, i32), (i32, i32), usize, i32);
+    let sides: [Side; 4] = [
         ((0, 0), (1, 0), cc, 0),
         ((s, 0), (0, 1), b, 1),
         ((s, s), (-1, 0), cc, 1),

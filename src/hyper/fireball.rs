@@ -54,5 +54,6 @@ pub fn fireball(n: usize, frames: usize, spacing: f64, time_step: f64) -> Image 
         geometry,
         time_step: Some(time_step),
         path: "fireball".into(),
+        sources: Vec::new(),
     }
 }

@@ -43,9 +43,12 @@
 //! **Per-patch files** ([`write_patch_ply`], [`write_patch_plys`]) hold one
 //! patch's triangles over only the vertices they use, with one more vertex
 //! property, `property uint vid`: the vertex's id in the whole mesh, so the
-//! shared boundaries of patches in different files can be matched. They add a
-//! `comment patch <id> <value_a> <value_b>` line; faces have the same four
-//! properties.
+//! shared boundaries of patches in different files can be matched. Their
+//! `comment label` lines are the patch's two labels only (with thousands of
+//! labels, listing all of them in every file made the headers larger than the
+//! meshes), and they add a `comment patch <id> <value_a> <value_b>` line; faces
+//! have the same four properties. The junction file lists the labels that
+//! meet along its curves.
 //!
 //! **Junction files** ([`write_junctions_ply`]) hold the vertices of the junction
 //! curves (`float x, y, z`, `uint vid`) and an edge element:
@@ -315,13 +318,23 @@ fn edge_element(count: usize) -> ElementDef {
     )
 }
 
-/// A binary little-endian header with septa's comments and the given elements.
-fn header(mesh: &InterfaceMesh, extra_comments: &[String], elements: Vec<ElementDef>) -> Header {
+/// A binary little-endian header with septa's comments, a `comment label`
+/// line for each of `labels` (the labels the file holds: a patch file lists
+/// its two, not all of the volume's), and the given elements.
+fn header(
+    mesh: &InterfaceMesh,
+    labels: impl IntoIterator<Item = LabelId>,
+    extra_comments: &[String],
+    elements: Vec<ElementDef>,
+) -> Header {
     let mut h = Header::new();
     h.encoding = Encoding::BinaryLittleEndian;
     h.comments.push(format!("septa {VERSION}"));
     h.comments.push("space LPS mm".to_string());
-    for l in &mesh.labels {
+    for id in labels {
+        let Some(l) = mesh.labels.get(id as usize) else {
+            continue;
+        };
         h.comments.push(
             format!("label {} {}", l.value, one_line(&l.name))
                 .trim_end()
@@ -371,6 +384,7 @@ pub fn write_ply(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
     let values = patch_values(mesh)?;
     let h = header(
         mesh,
+        0..mesh.labels.len() as LabelId,
         &[],
         vec![
             vertex_element(mesh.vertex_count(), false),
@@ -459,7 +473,12 @@ fn write_patch(
     local.assign(&used);
     let comment = format!("patch {patch} {va} {vb}");
     let elements = vec![vertex_element(used.len(), true), face_element(tris.len())];
-    let h = header(mesh, &[comment], elements);
+    let h = header(
+        mesh,
+        mesh.patches[patch as usize].labels,
+        &[comment],
+        elements,
+    );
     let vertices = used.iter().map(|&v| VertexOut::new_at(mesh, v));
     let faces = tris.iter().map(|t| FaceOut {
         v: corners(t).map(|v| local.get(v)),
@@ -492,15 +511,25 @@ pub fn patch_file_name(mesh: &InterfaceMesh, prefix: &str, patch: u32) -> String
 /// Writes every patch to `dir/<prefix><value_a>_<value_b>.ply` (see
 /// [`write_patch_ply`]); returns the paths in patch order.
 pub fn write_patch_plys(dir: &Path, prefix: &str, mesh: &InterfaceMesh) -> Result<Vec<PathBuf>> {
+    let path_of = |p: usize| dir.join(patch_file_name(mesh, prefix, p as u32));
+    write_patch_plys_to(mesh, path_of)?;
+    Ok((0..mesh.patches.len()).map(path_of).collect())
+}
+
+/// Writes every patch `p` to `path_of(p)` (see [`write_patch_ply`]) in one
+/// pass over the triangles; returns the number of files written.
+pub fn write_patch_plys_to(
+    mesh: &InterfaceMesh,
+    path_of: impl Fn(usize) -> PathBuf,
+) -> Result<usize> {
     check_writable(mesh)?;
     let values = patch_values(mesh)?;
     let groups = mesh.patch_triangles();
     let mut local = LocalIds::new(mesh.vertex_count());
-    let write = |(p, tris): (usize, &Vec<u32>)| {
-        let path = dir.join(patch_file_name(mesh, prefix, p as u32));
-        write_patch(&path, mesh, p as u32, &values, tris, &mut local).map(|()| path)
-    };
-    groups.iter().enumerate().map(write).collect()
+    for (p, tris) in groups.iter().enumerate() {
+        write_patch(&path_of(p), mesh, p as u32, &values, tris, &mut local)?;
+    }
+    Ok(groups.len())
 }
 
 /// Edges (local vertex ids, curve index) of every junction curve.
@@ -558,8 +587,14 @@ pub fn write_junctions_ply(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
     let mut local = LocalIds::new(n);
     local.assign(&used);
     let edges = junction_edges(mesh, &local);
+    let on_curves: BTreeSet<LabelId> = mesh
+        .junctions
+        .iter()
+        .flat_map(|c| c.labels.iter().copied())
+        .collect();
     let h = header(
         mesh,
+        on_curves,
         &[],
         vec![vertex_element(used.len(), true), edge_element(edges.len())],
     );
@@ -587,6 +622,8 @@ pub struct PlyMesh {
     pub vertex_ids: Option<Vec<u32>>,
     /// What the reader had to assume or skip, for the user.
     pub notes: Vec<String>,
+    /// Faces of the file with fewer than three vertices (skipped), by index.
+    pub short_faces: Vec<usize>,
 }
 
 /// Implements the eight scalar setters of `PropertyAccess` through `self.scalar`.
@@ -974,7 +1011,7 @@ fn face_labels(path: &Path, f: usize, face: &FaceIn) -> Result<[i64; 2]> {
 struct Triangles {
     triangles: Vec<[u32; 3]>,
     values: Vec<[i64; 2]>,
-    skipped: usize,
+    skipped: Vec<usize>,
     swapped: usize,
 }
 
@@ -982,7 +1019,7 @@ fn triangulate(path: &Path, faces: &[FaceIn], n: usize, labelled: bool) -> Resul
     let mut out = Triangles {
         triangles: Vec::with_capacity(faces.len()),
         values: Vec::new(),
-        skipped: 0,
+        skipped: Vec::new(),
         swapped: 0,
     };
     out.values.reserve(faces.len());
@@ -997,7 +1034,7 @@ fn triangulate(path: &Path, faces: &[FaceIn], n: usize, labelled: bool) -> Resul
             ));
         }
         if idx.len() < 3 {
-            out.skipped += 1;
+            out.skipped.push(f);
             continue;
         }
         let mut labels = if labelled {
@@ -1094,10 +1131,10 @@ fn build(
         notes.push("faces have no label_a/label_b: all of them form one patch from 'inside' (0) to 'outside' (1)".into());
         BTreeMap::from([(0, "inside".to_string()), (1, "outside".to_string())])
     };
-    if tris.skipped > 0 {
+    if !tris.skipped.is_empty() {
         notes.push(format!(
             "skipped {} faces with fewer than 3 vertices",
-            tris.skipped
+            tris.skipped.len()
         ));
     }
     if tris.swapped > 0 {
@@ -1120,5 +1157,6 @@ fn build(
         mesh,
         vertex_ids,
         notes,
+        short_faces: tris.skipped,
     })
 }

@@ -59,6 +59,7 @@ pub fn read(path: &Path) -> Result<Image> {
         geometry,
         time_step,
         path: path.to_path_buf(),
+        sources: crate::io::nrrd::sources(path, &data_path),
     })
 }
 
@@ -268,7 +269,7 @@ fn data_file(path: &Path, f: &HashMap<String, String>) -> Result<PathBuf> {
         ));
     }
     let data_path = path.parent().unwrap_or(Path::new("")).join(name);
-    if name.is_empty() || !data_path.is_file() {
+    if name.is_empty() || std::fs::metadata(&data_path).is_err() {
         return Err(Error::input(
             path,
             format!(
@@ -277,7 +278,18 @@ fn data_file(path: &Path, f: &HashMap<String, String>) -> Result<PathBuf> {
             ),
         ));
     }
+    detached_is_file(path, &data_path, "ElementDataFile")?;
     Ok(data_path)
+}
+
+/// A detached data file must be a regular file; the error names the header.
+pub(crate) fn detached_is_file(header: &Path, data: &Path, field: &str) -> Result<()> {
+    crate::io::check_regular_file(data).map_err(|e| match e {
+        Error::Input { problem, .. } => {
+            Error::input(header, format!("the {field} {} {problem}", data.display()))
+        }
+        other => other,
+    })
 }
 
 /// Decodes the samples of `spec` from the data bytes.

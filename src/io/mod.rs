@@ -7,9 +7,10 @@
 //! [`Image::to_f64`]. Readers never panic on bad bytes: every problem becomes an
 //! [`Error`] naming the file and what is wrong with it.
 //!
-//! Writers are atomic: they write `name.tmp-septa` beside the target and rename it
-//! into place ([`atomic_write`]), so an interrupted run never leaves half a file,
-//! and they refuse to overwrite the file being read.
+//! Writers are atomic: they write a temporary file beside the target and rename
+//! it into place ([`atomic_write`]), so an interrupted run never leaves half a
+//! file; the temporary file is removed when the process is stopped by a signal
+//! ([`temp`]).
 
 pub mod gz;
 pub mod manifest;
@@ -19,6 +20,7 @@ pub mod metaimage;
 pub mod nifti;
 pub mod nrrd;
 pub mod raw;
+pub mod temp;
 
 use std::path::{Path, PathBuf};
 
@@ -186,6 +188,7 @@ impl Samples {
     }
 
     /// Every sample as f64 (exact for all types but 64-bit integers beyond 2^53).
+    #[allow(clippy::unnecessary_cast)] // one cast for all ten types, f64 among them
     pub fn to_f64(&self) -> Vec<f64> {
         for_each_samples!(self, v => v.iter().map(|&x| x as f64).collect())
     }
@@ -204,6 +207,9 @@ pub struct Image {
     pub time_step: Option<f64>,
     /// The file the image was read from (for messages).
     pub path: PathBuf,
+    /// Every file read for it: the header and any detached data file (so
+    /// that writers can refuse to replace a directory holding them).
+    pub sources: Vec<PathBuf>,
 }
 
 impl Image {
@@ -427,7 +433,7 @@ pub fn read_label_volume(path: &Path, opts: &ReadOptions) -> Result<LabelVolume>
 }
 
 /// Writes a label volume; the format follows the extension (`.nii`, `.nii.gz`,
-/// `.nrrd`). Atomic; refuses to write over `protect` (the input file).
+/// `.nrrd`). Atomic (see [`atomic_write`]).
 pub fn write_label_volume(path: &Path, volume: &LabelVolume) -> Result<()> {
     match VolumeFormat::from_path(path) {
         Some(VolumeFormat::Nifti) => nifti::write_labels(path, volume),
@@ -445,33 +451,145 @@ pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<()> {
 }
 
 /// Like [`atomic_write`], with a closure that streams into a buffered writer.
+///
+/// The temporary file has a short name (see [`temp`]) and is removed if the
+/// process is stopped by a signal. A file inside a temporary output directory
+/// is not synced on its own: the directory is synced once when complete
+/// ([`sync_tree`]); any other file is synced before the rename.
 pub fn atomic_write_with(
     path: &Path,
     f: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
 ) -> Result<()> {
-    let file_name = path
-        .file_name()
-        .ok_or_else(|| Error::input(path, "is not a file path"))?
-        .to_string_lossy()
-        .into_owned();
-    let tmp = path.with_file_name(format!(".{file_name}.tmp-septa-{}", std::process::id()));
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if path.file_name().is_none() {
+        return Err(Error::input(path, "is not a file path"));
+    }
+    temp::check_not_stopping(path)?;
+    let sync = !temp::inside_registered_dir(path);
+    if sync {
+        // what killed runs left beside their files (inside a temporary
+        // directory there is nothing to sweep)
+        temp::sweep_stale(dir);
+    }
+    let tmp = temp::register(temp::temp_path(dir, temp::Kind::New));
     let result = (|| -> std::io::Result<()> {
-        let file = std::fs::File::create(&tmp)?;
+        let file = std::fs::File::create(tmp.path())?;
         let mut w = std::io::BufWriter::with_capacity(1 << 20, file);
         f(&mut w)?;
         let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all().ok();
+        if sync {
+            file.sync_all()?;
+        }
         drop(file);
-        std::fs::rename(&tmp, path)
+        std::fs::rename(tmp.path(), path)
     })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(Error::io(path, e));
+    match result {
+        Ok(()) => {
+            drop(tmp);
+            Ok(())
+        }
+        Err(e) => {
+            tmp.remove();
+            Err(Error::io(path, e))
+        }
     }
-    Ok(())
 }
 
-/// Reads a whole file into memory, with the path in the error.
+/// Checks, before the work, that `path` can be written: creates and removes a
+/// temporary file beside it (a read-only or missing folder fails now).
+pub fn check_writable(path: &Path) -> Result<()> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let probe = temp::register(temp::temp_path(dir, temp::Kind::New));
+    match std::fs::File::create(probe.path()) {
+        Ok(_) => {
+            probe.remove();
+            Ok(())
+        }
+        Err(e) => {
+            drop(probe);
+            Err(Error::input(
+                path,
+                format!(
+                    "cannot be written: creating a file in {} fails: {e}",
+                    dir.display()
+                ),
+            ))
+        }
+    }
+}
+
+/// Syncs `dir` and every directory below it (the entries; their files'
+/// data goes with them on the common journalling file systems), once each:
+/// what a completed output directory needs before it is renamed into place.
+pub fn sync_tree(dir: &Path) -> Result<()> {
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    for e in entries {
+        let e = e.map_err(|e| Error::io(dir, e))?;
+        if e.file_type()
+            .map_err(|err| Error::io(e.path(), err))?
+            .is_dir()
+        {
+            sync_tree(&e.path())?;
+        }
+    }
+    sync_dir(dir)
+}
+
+/// Syncs one directory's entries (a no-op where directories cannot be opened).
+pub fn sync_dir(dir: &Path) -> Result<()> {
+    match std::fs::File::open(dir) {
+        Ok(f) => f.sync_all().or_else(|e| {
+            // some file systems refuse fsync on directories: nothing to do there
+            if matches!(
+                e.kind(),
+                std::io::ErrorKind::InvalidInput | std::io::ErrorKind::Unsupported
+            ) {
+                Ok(())
+            } else {
+                Err(Error::io(dir, e))
+            }
+        }),
+        Err(_) => Ok(()),
+    }
+}
+
+/// Reads a whole file into memory, with the path in the error. Only
+/// regular files: a directory, a device (`/dev/zero` reads for ever) or a
+/// pipe is an error that says so.
 pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>> {
-    std::fs::read(path).map_err(|e| Error::io(path, e))
+    check_regular_file(path)?;
+    let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let mut bytes = Vec::new();
+    bytes
+        .try_reserve_exact(usize::try_from(len).unwrap_or(usize::MAX))
+        .map_err(|_| {
+            Error::input(
+                path,
+                format!("out of memory reading the file ({len} bytes)"),
+            )
+        })?;
+    std::io::Read::read_to_end(&mut file, &mut bytes).map_err(|e| Error::io(path, e))?;
+    Ok(bytes)
+}
+
+/// An error unless `path` is a regular file (or a link to one).
+pub fn check_regular_file(path: &Path) -> Result<()> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if meta.is_dir() {
+        return Err(Error::input(path, "is a directory, not a file"));
+    }
+    if !meta.is_file() {
+        return Err(Error::input(
+            path,
+            "is not a regular file (a device, pipe or socket): septa reads files",
+        ));
+    }
+    Ok(())
 }

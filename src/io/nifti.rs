@@ -52,7 +52,7 @@ pub fn read(path: &Path) -> Result<Image> {
     let header_path = header_path_of(path)?;
     let file = read_file(&header_path)?;
     let prefix = if gz::is_gzip(&file) {
-        gz::gunzip(&header_path, &file, NIFTI2_HEADER as u64)?
+        gz::gunzip_prefix(&header_path, &file, NIFTI2_HEADER)?
     } else {
         file[..file.len().min(NIFTI2_HEADER)].to_vec()
     };
@@ -60,6 +60,7 @@ pub fn read(path: &Path) -> Result<Image> {
     let dtype = data_type(&header_path, h.datatype)?;
     let dims = extents(&header_path, &h)?;
     let geometry = geometry(&header_path, &h)?;
+    let mut sources = vec![header_path.clone()];
     let samples = if h.single_file {
         read_voxels(
             &header_path,
@@ -70,7 +71,12 @@ pub fn read(path: &Path) -> Result<Image> {
             h.little_endian,
         )?
     } else {
+        if gz::is_gzip(&file) {
+            // a gzipped .hdr is read only up to its header: verify the rest too
+            gz::gunzip(&header_path, &file, gz::max_inflated_len(file.len()))?;
+        }
         let data_path = data_path_of(&header_path)?;
+        sources.push(data_path.clone());
         let offset = h.data_offset_pair(&header_path)?;
         read_voxels(
             &data_path,
@@ -90,10 +96,11 @@ pub fn read(path: &Path) -> Result<Image> {
         geometry,
         time_step,
         path: path.to_path_buf(),
+        sources,
     })
 }
 
-/// Decodes the voxels at `offset` of `file` (gunzipping just as much as needed).
+/// Decodes the voxels at `offset` of `file` (gunzipped and verified when it is gzip).
 fn read_voxels(
     path: &Path,
     file: Vec<u8>,

@@ -65,7 +65,17 @@ pub fn read(path: &Path) -> Result<Image> {
         geometry: layout.geometry,
         time_step: layout.time_step,
         path: path.to_path_buf(),
+        sources: sources(path, &data_path),
     })
+}
+
+/// The header, and the detached data file if there is one.
+pub(crate) fn sources(path: &Path, data_path: &Path) -> Vec<std::path::PathBuf> {
+    let mut v = vec![path.to_path_buf()];
+    if data_path != path {
+        v.push(data_path.to_path_buf());
+    }
+    v
 }
 
 // ------------------------------------------------------------------- header
@@ -544,7 +554,7 @@ fn payload(path: &Path, h: &Header, file: Vec<u8>) -> Result<(PathBuf, Vec<u8>)>
         ));
     }
     let data_path = path.parent().unwrap_or(Path::new("")).join(name);
-    if !data_path.is_file() {
+    if std::fs::metadata(&data_path).is_err() {
         return Err(Error::input(
             path,
             format!(
@@ -553,6 +563,7 @@ fn payload(path: &Path, h: &Header, file: Vec<u8>) -> Result<(PathBuf, Vec<u8>)>
             ),
         ));
     }
+    crate::io::metaimage::detached_is_file(path, &data_path, "data file")?;
     let data = read_file(&data_path)?;
     Ok((data_path, data))
 }
@@ -589,6 +600,20 @@ fn decode_payload(path: &Path, data: &[u8], layout: &Layout) -> Result<Samples> 
             } else {
                 skip
             };
+            // more data than the sizes describe: the sizes (or the type) are wrong
+            let extra = data.len().saturating_sub(offset).saturating_sub(needed);
+            if extra > 0 && layout.byte_skip != -1 {
+                return Err(Error::input(
+                    path,
+                    format!(
+                        "holds {} bytes of voxel data after offset {offset}, but the sizes {:?} of \
+                         {} need {needed}: {extra} bytes would be ignored (check sizes and type)",
+                        data.len() - offset,
+                        layout.dims,
+                        layout.dtype.name()
+                    ),
+                ));
+            }
             decode_at(path, data, offset, n, layout.dtype, layout.little_endian)
         }
         Encoding::Gzip => {

@@ -33,7 +33,7 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<Image> {
     let expected = header
         .checked_add(data_bytes)
         .ok_or_else(|| Error::input(path, "header plus data size overflows"))?;
-    let data = gz::maybe_gunzip(path, read_file(path)?, expected as u64 + 1)?;
+    let data = gz::maybe_gunzip(path, read_file(path)?, expected as u64)?;
     if data.len() != expected {
         return Err(Error::input(
             path,
@@ -56,6 +56,7 @@ pub fn read(path: &Path, opts: &ReadOptions) -> Result<Image> {
         geometry,
         time_step: None,
         path: path.to_path_buf(),
+        sources: vec![path.to_path_buf()],
     })
 }
 

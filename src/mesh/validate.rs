@@ -40,7 +40,8 @@ pub struct Check {
 }
 
 impl Check {
-    fn new(name: &'static str) -> Self {
+    /// A check named `name` with no failures yet.
+    pub fn new(name: &'static str) -> Self {
         Check {
             name,
             failures: 0,
@@ -48,7 +49,8 @@ impl Check {
         }
     }
 
-    fn fail(&mut self, what: impl FnOnce() -> String) {
+    /// Records one failing element (the first few are kept as examples).
+    pub fn fail(&mut self, what: impl FnOnce() -> String) {
         self.failures += 1;
         if self.examples.len() < EXAMPLES {
             self.examples.push(what());
@@ -150,6 +152,13 @@ pub fn validate(mesh: &InterfaceMesh, opts: &Options) -> Report {
     if !indices_ok {
         return report;
     }
+    // the local checks assume three distinct corners
+    let corners = check_distinct_corners(mesh);
+    let corners_ok = corners.failures == 0;
+    report.checks.push(corners);
+    if !corners_ok {
+        return report;
+    }
     report.checks.push(check_unused(mesh));
     report.checks.push(check_duplicates(mesh));
     report.checks.push(check_degenerate(mesh));
@@ -174,7 +183,7 @@ fn check_indices(mesh: &InterfaceMesh) -> (bool, Check) {
     let mut c = Check::new("vertex indices in range");
     let n = mesh.positions.len() as u32;
     for (t, tri) in mesh.triangles.iter().enumerate() {
-        if tri.iter().any(|&v| v >= n) || tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
+        if tri.iter().any(|&v| v >= n) {
             c.fail(|| format!("triangle {t} {tri:?}"));
         }
     }
@@ -192,6 +201,16 @@ fn check_indices(mesh: &InterfaceMesh) -> (bool, Check) {
         }
     }
     (c.failures == 0, c)
+}
+
+fn check_distinct_corners(mesh: &InterfaceMesh) -> Check {
+    let mut c = Check::new("three distinct corners per triangle");
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
+            c.fail(|| format!("triangle {t} {tri:?}"));
+        }
+    }
+    c
 }
 
 fn check_unused(mesh: &InterfaceMesh) -> Check {

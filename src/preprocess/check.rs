@@ -125,51 +125,6 @@ fn check_refined(rv: &RefinedVolume, separation: &SeparationTable) -> GuaranteeR
     out
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::config::Resolved;
-    use crate::preprocess::critical_elements;
-    use crate::volume::{Dims, Geometry, LabelVolume, PaddedLabels};
-
-    #[test]
-    fn an_unfattened_volume_fails_the_check() {
-        let mut v = vec![0i64; 8];
-        v[0] = 1;
-        v[7] = 1; // two voxels sharing only a vertex
-        let vol = LabelVolume::from_values(Dims::new(2, 2, 2).unwrap(), &v, Geometry::identity())
-            .unwrap();
-        let r = Resolved::defaults(&vol);
-        let grid = PaddedLabels::new(&vol, 0);
-        let sep = SeparationTable::new(&r, 2);
-        let crit = critical_elements(&grid, &r, &sep);
-        assert_eq!(crit.counts(), (1, 0, 0));
-        let unrefined = RefinedVolume::unrefined(grid.clone(), 5);
-        let rep = check_guarantee(&unrefined, &sep, &crit);
-        assert!(!rep.passed());
-        // refined but not repainted: the fine check finds the vertex
-        let cells: Vec<[i32; 3]> = (0..8)
-            .map(|o| [o & 1, (o >> 1) & 1, (o >> 2) & 1])
-            .collect();
-        let mut sorted = cells.clone();
-        sorted.sort_by_key(|c| (c[2], c[1], c[0]));
-        let sub: Vec<LabelId> = sorted
-            .iter()
-            .flat_map(|c| std::iter::repeat_n(grid.get(c[0], c[1], c[2]), 125))
-            .collect();
-        let plain = RefinedVolume::new(grid.clone(), 5, sorted, sub);
-        let rep = check_guarantee(&plain, &sep, &crit);
-        assert!(
-            rep.first_violations
-                .iter()
-                .any(|v| matches!(v, Violation::CriticalVertex { at: [5, 5, 5], .. })),
-            "{rep:?}"
-        );
-        let fat = crate::preprocess::fatten(grid, &crit, 5, &r.rank, &sep);
-        assert!(check_guarantee(&fat, &sep, &crit).passed());
-    }
-}
-
 /// Fine labels of cell `c` and a one-subvoxel border, indexed by local (u, v, w) in −1..=s.
 fn fill_block(rv: &RefinedVolume, c: [i32; 3], block: &mut Vec<LabelId>) {
     let s = rv.subdivision();
@@ -303,5 +258,50 @@ fn check_cell(
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Resolved;
+    use crate::preprocess::critical_elements;
+    use crate::volume::{Dims, Geometry, LabelVolume, PaddedLabels};
+
+    #[test]
+    fn an_unfattened_volume_fails_the_check() {
+        let mut v = vec![0i64; 8];
+        v[0] = 1;
+        v[7] = 1; // two voxels sharing only a vertex
+        let vol = LabelVolume::from_values(Dims::new(2, 2, 2).unwrap(), &v, Geometry::identity())
+            .unwrap();
+        let r = Resolved::defaults(&vol);
+        let grid = PaddedLabels::new(&vol, 0);
+        let sep = SeparationTable::new(&r, 2);
+        let crit = critical_elements(&grid, &r, &sep);
+        assert_eq!(crit.counts(), (1, 0, 0));
+        let unrefined = RefinedVolume::unrefined(grid.clone(), 5);
+        let rep = check_guarantee(&unrefined, &sep, &crit);
+        assert!(!rep.passed());
+        // refined but not repainted: the fine check finds the vertex
+        let cells: Vec<[i32; 3]> = (0..8)
+            .map(|o| [o & 1, (o >> 1) & 1, (o >> 2) & 1])
+            .collect();
+        let mut sorted = cells.clone();
+        sorted.sort_by_key(|c| (c[2], c[1], c[0]));
+        let sub: Vec<LabelId> = sorted
+            .iter()
+            .flat_map(|c| std::iter::repeat_n(grid.get(c[0], c[1], c[2]), 125))
+            .collect();
+        let plain = RefinedVolume::new(grid.clone(), 5, sorted, sub);
+        let rep = check_guarantee(&plain, &sep, &crit);
+        assert!(
+            rep.first_violations
+                .iter()
+                .any(|v| matches!(v, Violation::CriticalVertex { at: [5, 5, 5], .. })),
+            "{rep:?}"
+        );
+        let fat = crate::preprocess::fatten(grid, &crit, 5, &r.rank, &sep);
+        assert!(check_guarantee(&fat, &sep, &crit).passed());
     }
 }

@@ -121,26 +121,102 @@ impl RemeshParams {
         )
     }
 
-    /// Checks the parameters (what [`remesh`] does first).
+    /// Most smoothing passes: the displacement bound stops the vertices
+    /// long before (the default is 10); more would only run for ever.
+    pub const MAX_SMOOTH_ITERATIONS: u32 = 1000;
+
+    /// Most remeshing rounds (the default is 8; each round costs as much as
+    /// the first).
+    pub const MAX_ITERATIONS: u32 = 100;
+
+    /// Shortest target edge, in voxels of the smallest spacing: the
+    /// extraction's own edges are about half a voxel, and the triangle count
+    /// grows with 1/L² (0.01 voxel: ten thousand times the default's).
+    pub const MIN_TARGET_VOXELS: f64 = 0.1;
+
+    /// Checks the parameters on their own: each finite, positive where it
+    /// must be, iterations within [`Self::MAX_SMOOTH_ITERATIONS`] and
+    /// [`Self::MAX_ITERATIONS`]. The error ([`Error::Parameter`]) names the
+    /// field.
     pub fn validate(&self) -> Result<()> {
         if !(self.target_edge.is_finite() && self.target_edge > 0.0) {
-            return Err(Error::invalid(format!(
-                "target edge length {} mm: it must be a positive number",
-                self.target_edge
-            )));
+            return Err(Error::parameter(
+                "target_edge",
+                self.target_edge,
+                "the target edge length must be a positive number of mm",
+            ));
         }
         if let Some(m) = self.min_edge {
             if !(m.is_finite() && m > 0.0) {
-                return Err(Error::invalid(format!(
-                    "smallest edge length {m} mm: it must be a positive number"
-                )));
+                return Err(Error::parameter(
+                    "min_edge",
+                    m,
+                    "the smallest edge length must be a positive number of mm",
+                ));
             }
         }
         if !(self.max_displacement.is_finite() && self.max_displacement >= 0.0) {
-            return Err(Error::invalid(format!(
-                "max displacement {} voxels: it must be zero or positive",
-                self.max_displacement
-            )));
+            return Err(Error::parameter(
+                "max_displacement",
+                self.max_displacement,
+                "the largest smoothing displacement must be zero or a positive number of voxels",
+            ));
+        }
+        if self.smooth_iterations > Self::MAX_SMOOTH_ITERATIONS {
+            return Err(Error::parameter(
+                "smooth_iterations",
+                self.smooth_iterations,
+                format!(
+                    "at most {} smoothing passes (default {}): vertices stop moving long before",
+                    Self::MAX_SMOOTH_ITERATIONS,
+                    Self::default().smooth_iterations
+                ),
+            ));
+        }
+        if self.iterations > Self::MAX_ITERATIONS {
+            return Err(Error::parameter(
+                "iterations",
+                self.iterations,
+                format!(
+                    "at most {} remeshing rounds (default {})",
+                    Self::MAX_ITERATIONS,
+                    Self::default().iterations
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Checks the target edge against the data too: at least
+    /// [`Self::MIN_TARGET_VOXELS`] of the smallest voxel spacing, at most the
+    /// diagonal of the whole surface's (or volume's) box, `extent_mm` (or 4
+    /// voxels, for tiny ones).
+    pub fn validate_scale(&self, geometry: &crate::volume::Geometry, extent_mm: f64) -> Result<()> {
+        self.validate()?;
+        let spacing = geometry.spacing();
+        let smallest = spacing.iter().copied().fold(f64::INFINITY, f64::min);
+        let largest = spacing.iter().copied().fold(0.0, f64::max);
+        let min = Self::MIN_TARGET_VOXELS * smallest;
+        if self.target_edge < min {
+            return Err(Error::parameter(
+                "target_edge",
+                self.target_edge,
+                format!(
+                    "shorter than {} voxel ({min} mm here): the mesh would have millions of \
+                     times more triangles than the voxels can resolve",
+                    Self::MIN_TARGET_VOXELS
+                ),
+            ));
+        }
+        if self.target_edge > extent_mm.max(4.0 * largest) {
+            return Err(Error::parameter(
+                "target_edge",
+                self.target_edge,
+                format!(
+                    "longer than the whole volume ({extent_mm:.1} mm corner to corner): no edge \
+                     of the surface can be that long"
+                ),
+            ));
         }
         Ok(())
     }
@@ -187,10 +263,21 @@ const ISLAND_TARGETS: f64 = 2.0;
 /// slabs of one colour are then far enough apart never to meet.
 const SLAB_REACHES: f64 = 3.0;
 
+/// The diagonal of the points' bounding box (0 for none).
+fn bbox_diagonal(points: &[DVec3]) -> f64 {
+    let Some(first) = points.first() else {
+        return 0.0;
+    };
+    let (lo, hi) = points
+        .iter()
+        .fold((*first, *first), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    (hi - lo).length()
+}
+
 /// Smooths and remeshes all patches of `mesh` toward the targets of
 /// `sizing` (see the module docs).
 pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> Result<Remeshed> {
-    params.validate()?;
+    params.validate_scale(&mesh.geometry, bbox_diagonal(&mesh.positions))?;
     let mut timings = RemeshTimings::default();
     let clock = std::time::Instant::now();
     let mut net = network::Network::new(mesh);

@@ -104,11 +104,21 @@ struct Outcome {
     dead: Vec<u32>,
     made: Vec<(DVec3, VertexKind)>,
     triangles: Vec<([u32; 3], u32, u32, bool)>,
-    /// Per curve run: (curve, first index, edges, closed run, new vertices).
-    runs: Vec<(u32, usize, usize, bool, Vec<u32>)>,
+    /// Per curve run: its curve and what became of it.
+    runs: Vec<(u32, RunResult)>,
 }
 
 const NEW: u32 = 1 << 31;
+
+/// A remeshed curve run: it covered the old vertices `start ..= start +
+/// edges` of its curve (cyclically on a closed one; `whole`: the entire
+/// closed curve) and has these vertices now (the same two ends).
+struct RunResult {
+    start: usize,
+    edges: usize,
+    whole: bool,
+    vertices: Vec<u32>,
+}
 
 impl Work {
     /// One remeshing iteration of every slab of colour `colour` (0 or 1).
@@ -432,13 +442,16 @@ impl Work {
                 t.kept,
             ));
         }
-        for ((c, start, edges, closed), cv) in run_keys.into_iter().zip(result.curves) {
+        for ((c, start, edges, whole), cv) in run_keys.into_iter().zip(result.curves) {
+            let vertices = cv.into_iter().map(to_global).collect();
             out.runs.push((
                 c,
-                start,
-                edges,
-                closed,
-                cv.into_iter().map(to_global).collect(),
+                RunResult {
+                    start,
+                    edges,
+                    whole,
+                    vertices,
+                },
             ));
         }
         out
@@ -466,7 +479,7 @@ impl Work {
             }
         }
         let mut alive = vec![true; self.pos.len()];
-        let mut runs_by_curve: HashMap<u32, Vec<(usize, usize, bool, Vec<u32>)>> = HashMap::new();
+        let mut runs_by_curve: HashMap<u32, Vec<RunResult>> = HashMap::new();
         for o in outcomes {
             let base = self.pos.len() as u32;
             for (v, p) in o.moved {
@@ -487,13 +500,9 @@ impl Work {
                 hint.push(h);
                 kept.push(k);
             }
-            for (c, start, edges, closed, cv) in o.runs {
-                runs_by_curve.entry(c).or_default().push((
-                    start,
-                    edges,
-                    closed,
-                    cv.into_iter().map(g).collect(),
-                ));
+            for (c, mut run) in o.runs {
+                run.vertices = run.vertices.into_iter().map(g).collect();
+                runs_by_curve.entry(c).or_default().push(run);
             }
         }
         self.tris = tris;
@@ -541,15 +550,18 @@ impl Work {
     }
 }
 
-/// Curve `cv` with its runs put in place: a run (first index, edges,
-/// closed, new vertices) covers the old vertices `first ..= first + edges`
-/// (cyclically on a closed curve) and its new vertices start and end with
-/// the same two (a closed run is the whole curve).
-fn splice(cv: &[u32], closed: bool, runs: Vec<(usize, usize, bool, Vec<u32>)>) -> Vec<u32> {
+/// Curve `cv` with its remeshed runs put in place.
+fn splice(cv: &[u32], closed: bool, runs: Vec<RunResult>) -> Vec<u32> {
     let n = cv.len();
     let mut from: HashMap<usize, (usize, Vec<u32>)> = HashMap::with_capacity(runs.len());
     let mut inside = vec![false; n];
-    for (start, edges, whole, vertices) in runs {
+    for RunResult {
+        start,
+        edges,
+        whole,
+        vertices,
+    } in runs
+    {
         if whole {
             return vertices;
         }
@@ -590,7 +602,16 @@ fn splice(cv: &[u32], closed: bool, runs: Vec<(usize, usize, bool, Vec<u32>)>) -
 
 #[cfg(test)]
 mod tests {
-    use super::splice;
+    use super::{RunResult, splice};
+
+    fn run(start: usize, edges: usize, whole: bool, vertices: Vec<u32>) -> RunResult {
+        RunResult {
+            start,
+            edges,
+            whole,
+            vertices,
+        }
+    }
 
     #[test]
     fn runs_replace_their_inner_vertices() {
@@ -600,26 +621,26 @@ mod tests {
             &cv,
             false,
             vec![
-                (1, 2, false, vec![1, 10, 11, 12, 3]),
-                (4, 1, false, vec![4, 13, 5]),
+                run(1, 2, false, vec![1, 10, 11, 12, 3]),
+                run(4, 1, false, vec![4, 13, 5]),
             ],
         );
         assert_eq!(out, vec![0, 1, 10, 11, 12, 3, 4, 13, 5]);
         // a run to the end of an open curve, one that collapsed its inner vertex
         assert_eq!(
-            splice(&cv, false, vec![(3, 2, false, vec![3, 5])]),
+            splice(&cv, false, vec![run(3, 2, false, vec![3, 5])]),
             vec![0, 1, 2, 3, 5]
         );
         assert_eq!(
-            splice(&cv, false, vec![(0, 5, false, vec![0, 9, 5])]),
+            splice(&cv, false, vec![run(0, 5, false, vec![0, 9, 5])]),
             vec![0, 9, 5]
         );
         // closed: a run over the wrap (4, 5, 0, 1)
-        let out = splice(&cv, true, vec![(4, 3, false, vec![4, 20, 1])]);
+        let out = splice(&cv, true, vec![run(4, 3, false, vec![4, 20, 1])]);
         assert_eq!(out, vec![1, 2, 3, 4, 20]);
         // the whole closed curve
         assert_eq!(
-            splice(&cv, true, vec![(0, 6, true, vec![7, 8, 9])]),
+            splice(&cv, true, vec![run(0, 6, true, vec![7, 8, 9])]),
             vec![7, 8, 9]
         );
         // no run: unchanged
