@@ -75,6 +75,68 @@ impl Tri {
     }
 }
 
+/// Whether `made` is a fan that cannot overlap itself, shown without testing
+/// its triangles pairwise: all share one apex (the first corner of each, as
+/// the remesher makes them) and form one chain around it (each triangle's
+/// far corner is the next one's near corner: one start, or none for a
+/// closed fan); seen along the mean of their normals every one keeps its
+/// orientation (by a margin), and the angles they span at the apex add up
+/// to less than one turn (open) or to one turn (closed). Their projections
+/// are then consecutive sectors around the apex that meet only along their
+/// sides, so the triangles meet only along their shared edges. `false` says
+/// only "not shown this way".
+fn is_simple_fan(made: &[Tri]) -> bool {
+    if made.len() < 2 {
+        return true;
+    }
+    let apex = made[0].k[0];
+    if made
+        .iter()
+        .any(|t| t.k[0] != apex || t.k[1] == apex || t.k[2] == apex)
+    {
+        return false;
+    }
+    // one chain: near corners distinct, far corners distinct, at most one
+    // near corner that is no far corner
+    let mut starts = 0;
+    for (i, t) in made.iter().enumerate() {
+        if made[i + 1..]
+            .iter()
+            .any(|u| u.k[1] == t.k[1] || u.k[2] == t.k[2])
+        {
+            return false;
+        }
+        starts += usize::from(!made.iter().any(|u| u.k[2] == t.k[1]));
+    }
+    if starts > 1 {
+        return false;
+    }
+    let normals = made
+        .iter()
+        .map(|t| (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]));
+    let axis = normals.clone().sum::<DVec3>().normalize_or_zero();
+    if axis == DVec3::ZERO {
+        return false;
+    }
+    // every triangle faces along the axis by at least cos 84°
+    let mut turn = 0.0;
+    for (t, n) in made.iter().zip(normals) {
+        if !(n.dot(axis) > 0.1 * n.length()) {
+            return false;
+        }
+        let (a, b) = (t.p[1] - t.p[0], t.p[2] - t.p[0]);
+        let (a, b) = (a - axis * a.dot(axis), b - axis * b.dot(axis));
+        turn += a.cross(b).dot(axis).atan2(a.dot(b));
+    }
+    let full = std::f64::consts::TAU;
+    // (rounding moves the sum by far less than this margin)
+    if starts == 1 {
+        turn < full - 1e-6
+    } else {
+        (turn - full).abs() < 1e-6
+    }
+}
+
 /// A box in `f32`, rounded outward.
 #[derive(Clone, Copy, Debug)]
 struct Box32 {
@@ -360,10 +422,12 @@ impl Guard {
         {
             return false;
         }
-        for (i, s) in made.iter().enumerate() {
-            for t in &made[i + 1..] {
-                if triangles_cross(&s.p, &s.k, &t.p, &t.k) {
-                    return false;
+        if !is_simple_fan(made) {
+            for (i, s) in made.iter().enumerate() {
+                for t in &made[i + 1..] {
+                    if triangles_cross(&s.p, &s.k, &t.p, &t.k) {
+                        return false;
+                    }
                 }
             }
         }
