@@ -165,6 +165,15 @@ pub fn triangles_cross(sp: &[DVec3; 3], sk: &[u64; 3], tp: &[DVec3; 3], tk: &[u6
     }
     let shared = &shared[..n_shared];
     let (sp, tp) = (*sp, *tp);
+    if let [(i, j)] = *shared {
+        // neighbours around a common vertex, the usual pair in a mesh: apart
+        // when their sectors at it are apart, seen along their normals
+        let (s1, s2) = (sp[(i + 1) % 3], sp[(i + 2) % 3]);
+        let (t1, t2) = (tp[(j + 1) % 3], tp[(j + 2) % 3]);
+        if sectors_apart(sp[i], s1, s2, t1, t2) {
+            return false;
+        }
+    }
     if n_shared < 2 && (separated_by_plane(&sp, &tp) || separated_by_plane(&tp, &sp)) {
         return false;
     }
@@ -198,6 +207,62 @@ pub fn triangles_cross(sp: &[DVec3; 3], sk: &[u64; 3], tp: &[DVec3; 3], tk: &[u6
             side(sp[free_s]) * side(tp[free_t]) > 0.0
         }
         _ => true,
+    }
+}
+
+/// Whether triangles (v, s1, s2) and (v, t1, t2), which share the vertex v,
+/// are shown to meet only there: seen along the sum of their unit normals,
+/// both keep their orientation and their sectors at v are apart (the
+/// second's lies within the turn from s2 back to s1, with a margin). Their
+/// projections then meet only at v, so the triangles do. `false` says only
+/// "not shown this way".
+fn sectors_apart(v: DVec3, s1: DVec3, s2: DVec3, t1: DVec3, t2: DVec3) -> bool {
+    let (a1, a2, b1, b2) = (s1 - v, s2 - v, t1 - v, t2 - v);
+    let (ns, nt) = (a1.cross(a2), b1.cross(b2));
+    let (ls, lt) = (ns.length(), nt.length());
+    if !(ls > 0.0 && lt > 0.0) {
+        return false;
+    }
+    let axis = ns / ls + nt / lt;
+    let len = axis.length();
+    // nearly opposite normals: no good direction to look along
+    if !(len > 0.2) {
+        return false;
+    }
+    let axis = axis / len;
+    // both face along the axis by a margin (cos 84°)
+    if !(ns.dot(axis) > 0.1 * ls && nt.dot(axis) > 0.1 * lt) {
+        return false;
+    }
+    let e1 = axis.any_orthonormal_vector();
+    let e2 = axis.cross(e1);
+    let flat = |d: DVec3| [d.dot(e1), d.dot(e2)];
+    let (a1, a2, b1, b2) = (flat(a1), flat(a2), flat(b1), flat(b2));
+    // pseudo-angles in [0, 4) from a1, counter-clockwise
+    let turn = |d: [f64; 2]| {
+        let p = diamond_angle(d) - diamond_angle(a1);
+        if p < 0.0 { p + 4.0 } else { p }
+    };
+    let (ra2, rb1, rb2) = (turn(a2), turn(b1), turn(b2));
+    const MARGIN: f64 = 1e-9;
+    ra2 + MARGIN < rb1 && rb1 + MARGIN < rb2 && rb2 < 4.0 - MARGIN
+}
+
+/// A pseudo-angle of the 2-D direction `d`: increases with the angle,
+/// [0, 4) over one turn (0, 1, 2, 3 at the axes), without trigonometry.
+#[inline]
+fn diamond_angle(d: [f64; 2]) -> f64 {
+    let [x, y] = d;
+    let s = x.abs() + y.abs();
+    if !(s > 0.0) {
+        return 0.0;
+    }
+    if y >= 0.0 {
+        if x >= 0.0 { y / s } else { 1.0 - x / s }
+    } else if x < 0.0 {
+        2.0 - y / s
+    } else {
+        3.0 + x / s
     }
 }
 

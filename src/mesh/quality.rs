@@ -224,7 +224,7 @@ pub struct LabelVolumeStats {
 ///     positions: m.positions.iter().map(|p| *p + DVec3::new(0.0, 0.0, 0.25)).collect(),
 ///     ..m.clone()
 /// };
-/// let r = quality(&shifted, Some(&m), &QualityOptions { target_edge_mm: 2f64.sqrt() });
+/// let r = quality(&shifted, Some(&m), &QualityOptions::target(2f64.sqrt()));
 /// assert!((r.angles.min_deg - 60.0).abs() < 1e-9);
 /// assert_eq!(r.valence.interior, vec![0, 0, 0, 0, 6]);
 /// assert!((r.edges.mean_rel - 1.0).abs() < 1e-12);
