@@ -484,8 +484,8 @@ struct Kept {
 impl Kept {
     fn report(&self, ui: &Ui) {
         ui.say(format!(
-            "kept       {:.2} % of the surface as extracted ({:.2} % small islands, kept by design; \
-             the rest where no operation could be done without two sheets crossing)",
+            "kept       {:.2} % of the surface as extracted ({:.2} % on small islands), where no \
+             operation could be done without two sheets crossing or an island turning inside out",
             100.0 * self.share,
             100.0 * self.islands
         ));

@@ -54,6 +54,9 @@ pub(super) struct PatchState<'r> {
     pub(super) reference: &'r SurfaceRef,
     /// Per face: unchanged since the extraction.
     pub(super) kept: Vec<bool>,
+    /// Per face: its closed component (an index into
+    /// [`Remesher::volumes`]) or [`NONE`].
+    pub(super) component: Vec<u32>,
 }
 
 /// How closely new triangles must follow the reference surface.
@@ -137,6 +140,9 @@ pub(super) struct Remesher<'r> {
     pub(super) guard: Guard,
     made: Vec<Tri>,
     replaced: Vec<(u32, u32)>,
+    /// Per closed component: the signed volume it may still lose here (see
+    /// [`Region::volumes`]).
+    volumes: Vec<f64>,
     /// Debug counters: guard queries, made triangles, guard ns, refusals; then per pass ns: curves, split, collapse, flip, relax
     pub(super) stats: [u64; 10],
 }
@@ -156,6 +162,11 @@ pub(super) struct Region<'r> {
     pub(super) obstacles: Vec<[u32; 3]>,
     /// Operations may make triangles only within this box.
     pub(super) trusted: (DVec3, DVec3),
+    /// Per closed component (a surface component without junctions) of
+    /// which the region holds triangles: its share of the component's
+    /// signed enclosed volume. No operation may take a component's volume
+    /// past its share: the share is what keeps it from turning inside out.
+    pub(super) volumes: Vec<f64>,
 }
 
 pub(super) struct RegionPatch<'r> {
@@ -163,6 +174,9 @@ pub(super) struct RegionPatch<'r> {
     pub(super) triangles: Vec<[u32; 3]>,
     pub(super) hints: Vec<u32>,
     pub(super) kept: Vec<bool>,
+    /// Per triangle: its closed component (an index into
+    /// [`Region::volumes`]) or [`NONE`].
+    pub(super) components: Vec<u32>,
 }
 
 impl<'r> Remesher<'r> {
@@ -176,6 +190,7 @@ impl<'r> Remesher<'r> {
             curves,
             obstacles,
             trusted,
+            volumes,
         } = region;
         let patches: Vec<PatchState> = patches
             .into_iter()
@@ -201,6 +216,7 @@ impl<'r> Remesher<'r> {
             guard,
             made: Vec::new(),
             replaced: Vec::new(),
+            volumes,
             stats: [0; 10],
         };
         r.rebuild_copies();
@@ -240,11 +256,54 @@ impl<'r> Remesher<'r> {
     fn guard_clear(&mut self) -> bool {
         self.stats[0] += 1;
         self.stats[1] += self.made.len() as u64;
+        let volume = self.volume_change();
+        if let Some((c, change)) = volume {
+            let left = self.volumes[c as usize];
+            // the volume keeps its sign: the component cannot jump through
+            // itself and come out inside out (which no crossing test sees)
+            if !(left * (left + change) > 0.0) {
+                self.stats[3] += 1;
+                return false;
+            }
+        }
         let t = std::time::Instant::now();
         let ok = self.guard.clear(&self.made, &self.replaced);
         self.stats[2] += t.elapsed().as_nanos() as u64;
         self.stats[3] += u64::from(!ok);
+        if ok {
+            if let Some((c, change)) = volume {
+                self.volumes[c as usize] += change;
+            }
+        }
         ok
+    }
+
+    /// The closed component that `self.replaced` belongs to, if any, and
+    /// the signed volume it gains when `self.made` replaces them (both bound
+    /// the same ring: the difference is the volume between them, whatever
+    /// the origin).
+    fn volume_change(&self) -> Option<(u32, f64)> {
+        let c = self.replaced.iter().find_map(|&(p, f)| {
+            let c = *self.patches[p as usize].component.get(f as usize)?;
+            (c != NONE).then_some(c)
+        })?;
+        let first = self.made.first()?;
+        let o = first.p[0];
+        let cone = |p: [DVec3; 3]| (p[0] - o).dot((p[1] - o).cross(p[2] - o)) / 6.0;
+        let made: f64 = self.made.iter().map(|t| cone(t.p)).sum();
+        let replaced: f64 = self
+            .replaced
+            .iter()
+            .map(|&(p, f)| {
+                let m = &self.patches[p as usize].mesh;
+                if m.face_dead(f) {
+                    0.0
+                } else {
+                    cone(m.face_vertices(f).map(|v| m.pos[v as usize]))
+                }
+            })
+            .sum();
+        Some((c, made - replaced))
     }
 
     /// Before faces change: takes them out of the guard.
@@ -404,11 +463,17 @@ impl<'r> Remesher<'r> {
             .map(|g| (p, m.face(g)))
             .collect();
         self.unregister(&old);
-        let m = &mut self.patches[p as usize].mesh;
-        let before = m.face_slots() as u32;
-        let v = m.split(h, at);
+        let st = &mut self.patches[p as usize];
+        let before = st.mesh.face_slots() as u32;
+        let v = st.mesh.split(h, at);
+        // the new faces are of the split faces' component
+        let c = old
+            .first()
+            .and_then(|&(_, f)| st.component.get(f as usize).copied())
+            .unwrap_or(NONE);
+        st.component.resize(st.mesh.face_slots(), c);
         let mut changed = old;
-        changed.extend((before..m.face_slots() as u32).map(|f| (p, f)));
+        changed.extend((before..st.mesh.face_slots() as u32).map(|f| (p, f)));
         self.register(&changed);
         v
     }
@@ -947,7 +1012,11 @@ fn build_patch<'r>(pos: &[DVec3], kind: &[VertexKind], rp: RegionPatch<'r>) -> P
     let mut m = HalfedgeMesh::from_triangles(lpos, tag, &local_tris)
         .expect("patches of a valid interface mesh are manifolds");
     for v in 0..m.vertex_slots() {
-        m.locked[v] = kind[m.tag[v] as usize] != VertexKind::Interior;
+        // small islands are remeshed like the rest, from their unsmoothed shape
+        m.locked[v] = !matches!(
+            kind[m.tag[v] as usize],
+            VertexKind::Interior | VertexKind::Island
+        );
     }
     // every vertex starts with the hint of one of its faces
     for (f, &hint) in rp.hints.iter().enumerate() {
@@ -964,6 +1033,7 @@ fn build_patch<'r>(pos: &[DVec3], kind: &[VertexKind], rp: RegionPatch<'r>) -> P
         mesh: m,
         reference: rp.reference,
         kept: rp.kept,
+        component: rp.components,
     }
 }
 

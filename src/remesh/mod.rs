@@ -4,7 +4,8 @@
 //!
 //! [`remesh`] runs the stage:
 //! 1. the [`network`] says which vertices are corners, on junction curves
-//!    or interior (and which small islands keep their extracted shape);
+//!    or interior (and which small islands keep their extracted shape
+//!    through the smoothing, which would shrink them);
 //! 2. [`smooth`] (Taubin λ/μ, confined to a box of `max_displacement` voxels
 //!    around each start position, then untangled) gives the smoothed
 //!    *reference*, which crosses itself nowhere;
@@ -16,6 +17,11 @@
 //!    result crosses itself nowhere either. Space is cut into slabs
 //!    remeshed in parallel (see `work.rs`), with the same result for any
 //!    number of threads.
+//!
+//! Closed components (without junctions) are remeshed too, with their
+//! enclosed volume kept from passing through zero: an island smaller than
+//! an edge could otherwise jump through itself and come out inside out,
+//! which no crossing test sees.
 //!
 //! Where an operation cannot be done safely the triangles stay as they
 //! are, there only; [`Remeshed::kept_share`] says how much of the surface
@@ -229,9 +235,9 @@ pub struct Remeshed {
     /// The smoothed extraction (the surface the remeshed vertices lie on).
     pub smoothed: InterfaceMesh,
     /// Share of the output surface (by area) left as extracted: triangles no
-    /// operation could change safely, and small islands (kept by design).
+    /// operation could change safely.
     pub kept_share: f64,
-    /// The part of [`Remeshed::kept_share`] that is small islands.
+    /// The part of [`Remeshed::kept_share`] that is on small islands.
     pub island_share: f64,
     /// Wall time of each step.
     pub timings: RemeshTimings,
@@ -253,8 +259,8 @@ pub struct RemeshTimings {
 const FIT_VOXELS: f64 = 0.3;
 
 /// Islands (closed components without junctions) of at most this many
-/// voxels, or at most [`ISLAND_TARGETS`] target edges long, are kept as
-/// extracted (see [`network::Network::mark_islands`]).
+/// voxels, or at most [`ISLAND_TARGETS`] target edges long, are not
+/// smoothed (see [`network::Network::mark_islands`]).
 const ISLAND_VOXELS: f64 = 27.0;
 /// See [`ISLAND_VOXELS`].
 const ISLAND_TARGETS: f64 = 2.0;
@@ -386,8 +392,8 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
         .zip(&work.kept)
         .map(|(t, &k)| {
             let a = area(t);
-            let k = k || island(t);
-            (a, if k { a } else { 0.0 }, if island(t) { a } else { 0.0 })
+            let isl = k && island(t);
+            (a, if k { a } else { 0.0 }, if isl { a } else { 0.0 })
         })
         .reduce(|| (0.0, 0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1, x.2 + y.2));
     let share = |x: f64| if total > 0.0 { x / total } else { 0.0 };

@@ -2,10 +2,7 @@
 //! (where junction curves meet; they never move), which lie on a junction
 //! curve (they move only along it), and which are interior to one patch.
 
-use glam::DVec3;
-use rayon::prelude::*;
-
-use crate::geom::{Bvh, Dsu};
+use crate::geom::Dsu;
 use crate::mesh::InterfaceMesh;
 
 /// Role of a vertex during smoothing and remeshing.
@@ -18,11 +15,9 @@ pub enum VertexKind {
     /// An end of a junction curve, where curves meet: fixed.
     Corner,
     /// On a small island (a closed surface component without junctions,
-    /// e.g. a few voxels of one label inside another): kept as extracted.
+    /// e.g. a few voxels of one label inside another): not smoothed, then
+    /// remeshed like an interior vertex.
     Island,
-    /// Kept at its smoothed position: in a region where remeshing left two
-    /// sheets crossing (see [`Network::keep_within`]).
-    Kept,
 }
 
 /// A junction curve: ordered global vertex ids.
@@ -72,61 +67,13 @@ impl Network {
         )
     }
 
-    /// Keeps the vertices whose `positions` lie in one of the boxes
-    /// `regions` where they are: interior vertices become
-    /// [`VertexKind::Kept`], curve vertices [`VertexKind::Corner`] (fixed).
-    /// Returns the number of vertices newly kept.
-    pub fn keep_within(&mut self, positions: &[DVec3], regions: &[(DVec3, DVec3)]) -> usize {
-        if regions.is_empty() {
-            return 0;
-        }
-        let bvh = Bvh::new(regions);
-        let inside: Vec<bool> = positions
-            .par_iter()
-            .map(|&p| {
-                // (the tree reports every item of a leaf it reaches: test each box)
-                bvh.any(p, p, |i| {
-                    let (lo, hi) = regions[i as usize];
-                    p.cmpge(lo).all() && p.cmple(hi).all()
-                })
-            })
-            .collect();
-        let mut kept = 0;
-        for (k, inside) in self.kind.iter_mut().zip(inside) {
-            let new = match *k {
-                VertexKind::Interior if inside => VertexKind::Kept,
-                VertexKind::Curve(_) if inside => VertexKind::Corner,
-                other => other,
-            };
-            kept += usize::from(new != *k);
-            *k = new;
-        }
-        kept
-    }
-
-    /// Keeps every vertex where it is (see [`Network::keep_within`]).
-    pub fn keep_all(&mut self) -> usize {
-        let mut kept = 0;
-        for k in self.kind.iter_mut() {
-            let new = match *k {
-                VertexKind::Interior => VertexKind::Kept,
-                VertexKind::Curve(_) => VertexKind::Corner,
-                other => other,
-            };
-            kept += usize::from(new != *k);
-            *k = new;
-        }
-        kept
-    }
-
     /// Marks the vertices of small islands as [`VertexKind::Island`]:
     /// closed components of the mesh without junction vertices that enclose
     /// at most `max_voxels` voxels or are no longer than `extent` (mm) along
     /// every axis. Smoothing shrinks such a component toward a point or a
-    /// needle (it is all high frequency), and remeshing it to edges about as
-    /// long as the island itself can only give a tetrahedron, which collapses
-    /// can turn inside out; so they keep their extracted shape. Returns the
-    /// number of islands marked.
+    /// needle (it is all high frequency), so they keep their extracted shape
+    /// through it (the remesher then remeshes them, keeping their volume
+    /// from passing through zero). Returns the number of islands marked.
     pub fn mark_islands(&mut self, mesh: &InterfaceMesh, max_voxels: f64, extent: f64) -> usize {
         let n = mesh.vertex_count();
         let mut dsu = Dsu::new(n);

@@ -20,6 +20,7 @@ use rayon::prelude::*;
 use super::isotropic::{CurveRun, Region, RegionPatch, RegionResult, Remesher};
 use super::network::VertexKind;
 use super::sizing::Sizing;
+use crate::geom::dsu::Dsu;
 use crate::geom::nearest::{CurveRef, SurfaceRef};
 
 /// The mesh being remeshed: one vertex pool, triangles with their patch, a
@@ -110,6 +111,19 @@ struct Outcome {
 
 const NEW: u32 = 1 << 31;
 
+/// No closed component (see [`ClosedComponents`]).
+const NONE_COMPONENT: u32 = u32::MAX;
+
+/// The closed surface components of the working mesh: per triangle its
+/// component (or [`NONE_COMPONENT`]), per component the share of its signed
+/// enclosed volume each slab of a pass may use (its volume over the number
+/// of slabs of the pass holding it, so that together they cannot take it
+/// past zero).
+struct ClosedComponents {
+    of_triangle: Vec<u32>,
+    share: Vec<f64>,
+}
+
 /// A remeshed curve run: it covered the old vertices `start ..= start +
 /// edges` of its curve (cyclically on a closed one; `whole`: the entire
 /// closed curve) and has these vertices now (the same two ends).
@@ -145,9 +159,10 @@ impl Work {
             }
         }
         let todo: Vec<usize> = (0..slabs.count).filter(|s| s % 2 == colour).collect();
+        let closed = self.closed_components(&todo, &buckets);
         let outcomes: Vec<Outcome> = todo
             .par_iter()
-            .map(|&s| self.remesh_slab(slabs, s, &buckets, &uses, shared))
+            .map(|&s| self.remesh_slab(slabs, s, &buckets, &uses, &closed, shared))
             .collect();
         if std::env::var_os("SEPTA_DEBUG_ITER").is_some() {
             let mut t = [0u64; 10];
@@ -178,6 +193,61 @@ impl Work {
         }
     }
 
+    /// The closed surface components (those without junction vertices) and
+    /// the share of its signed volume that each slab of `todo` may use.
+    fn closed_components(&self, todo: &[usize], buckets: &[Vec<u32>]) -> ClosedComponents {
+        let n = self.pos.len();
+        let mut dsu = Dsu::new(n);
+        for t in &self.tris {
+            dsu.union(t[0], t[1]);
+            dsu.union(t[0], t[2]);
+        }
+        let mut junction = vec![false; n];
+        for v in 0..n {
+            if matches!(self.kind[v], VertexKind::Curve(_) | VertexKind::Corner) {
+                junction[dsu.find(v as u32) as usize] = true;
+            }
+        }
+        let mut index = vec![NONE_COMPONENT; n];
+        let mut volume = Vec::new();
+        let mut of_triangle = Vec::with_capacity(self.tris.len());
+        for t in &self.tris {
+            let r = dsu.find(t[0]) as usize;
+            if junction[r] {
+                of_triangle.push(NONE_COMPONENT);
+                continue;
+            }
+            if index[r] == NONE_COMPONENT {
+                index[r] = volume.len() as u32;
+                volume.push(0.0);
+            }
+            // about the root vertex: the sum over a closed surface does not
+            // depend on the origin, and a near one keeps it precise
+            let o = self.pos[r];
+            let [a, b, c] = t.map(|v| self.pos[v as usize] - o);
+            volume[index[r] as usize] += a.dot(b.cross(c)) / 6.0;
+            of_triangle.push(index[r]);
+        }
+        // slabs of this colour holding each component
+        let mut slabs = vec![0u32; volume.len()];
+        let mut last = vec![usize::MAX; volume.len()];
+        for &s in todo {
+            for &t in &buckets[s] {
+                let c = of_triangle[t as usize];
+                if c != NONE_COMPONENT && last[c as usize] != s {
+                    last[c as usize] = s;
+                    slabs[c as usize] += 1;
+                }
+            }
+        }
+        let share = volume
+            .iter()
+            .zip(&slabs)
+            .map(|(v, &k)| v / k.max(1) as f64)
+            .collect();
+        ClosedComponents { of_triangle, share }
+    }
+
     /// Every patch a manifold: each directed edge once per patch.
     pub(super) fn check(&self) -> Result<(), String> {
         let mut seen: HashMap<(u32, u32, u32), usize> = HashMap::new();
@@ -201,6 +271,7 @@ impl Work {
         s: usize,
         buckets: &[Vec<u32>],
         uses: &[u32],
+        closed: &ClosedComponents,
         shared: &Shared,
     ) -> Outcome {
         let own = &buckets[s];
@@ -289,16 +360,29 @@ impl Work {
                 triangles: Vec::new(),
                 hints: Vec::new(),
                 kept: Vec::new(),
+                components: Vec::new(),
             })
             .collect();
+        let mut local_component: HashMap<u32, u32> = HashMap::new();
+        let mut volumes = Vec::new();
         for (i, &t) in own.iter().enumerate() {
             let p = patch_ids
                 .binary_search(&self.patch[t as usize])
                 .expect("patch listed");
+            let c = closed.of_triangle[t as usize];
+            let c = if c == NONE_COMPONENT {
+                NONE_COMPONENT
+            } else {
+                *local_component.entry(c).or_insert_with(|| {
+                    volumes.push(closed.share[c as usize]);
+                    (volumes.len() - 1) as u32
+                })
+            };
             let rp = &mut patches[p];
             rp.triangles.push(own_tris[i]);
             rp.hints.push(self.hint[t as usize]);
             rp.kept.push(self.kept[t as usize]);
+            rp.components.push(c);
         }
 
         // curve runs: maximal chains of edges with a free end
@@ -373,6 +457,7 @@ impl Work {
             curves: runs,
             obstacles,
             trusted: (lo, hi),
+            volumes,
         };
         let t_slab = std::time::Instant::now();
         let mut r = Remesher::new(region, shared.sizing, shared.eps, cell);
