@@ -49,9 +49,9 @@ fn remeshed(vol: &LabelVolume, r: &Resolved, target_edge: f64) -> (InterfaceMesh
 }
 
 /// Share of the surface left as extracted where no operation could be done
-/// safely (small islands, kept by design, apart).
+/// safely.
 fn stuck(out: &Remeshed) -> f64 {
-    out.kept_share - out.island_share
+    out.kept_share
 }
 
 /// Every invariant but self-intersections (counted separately).
@@ -277,7 +277,7 @@ fn lenses_on_an_interface_do_not_cross() {
 /// target edges: every invariant holds, including no self-intersections
 /// (every operation is checked against every other triangle), junction
 /// curves stay shared, and at most 1 % of the surface is left as extracted
-/// outside small islands. (The earlier remesher, repairing crossings after
+/// (small islands included). (The earlier remesher, repairing crossings after
 /// the fact, kept nearly everything on the noisiest of these.)
 #[test]
 fn random_volumes_remesh_without_crossings() {
