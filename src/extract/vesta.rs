@@ -495,13 +495,165 @@ fn owns(near: &Near, u: [i32; 3], s: i32) -> bool {
 /// The fine path over a list of refined voxels.
 pub(crate) fn refined_cells(ctx: &Ctx, cells: &[[i32; 3]]) -> Part {
     let mut part = Part::default();
+    let mut secs = Sections::new(ctx.lat.s);
     for &c in cells {
-        refined_cell(ctx, &mut part, c);
+        secs.reset();
+        refined_cell(ctx, &mut part, &mut secs, c);
     }
     part
 }
 
-fn refined_cell(ctx: &Ctx, part: &mut Part, c: [i32; 3]) {
+/// The boundary faces of one section (the part of a fine grid plane inside one
+/// coarse cell's cross-section, s × s fine faces) cut into rectangles of faces
+/// with the same ordered label pair; every fine face of a rectangle has the
+/// rectangle's centre as its support point. The cut depends only on the labels
+/// on both sides of the section (greedy: rows of maximal runs, grown downward
+/// while the whole run repeats), so every refined voxel that touches the section
+/// finds the same rectangles, and the complex stays conforming: a rectangle is a
+/// polygon whose boundary carries the fine vertices of its neighbours.
+pub(crate) struct Sections {
+    s: i32,
+    /// Per slot: the generation in which it was filled.
+    stamp: Vec<u32>,
+    generation: u32,
+    /// Per slot and fine face (u + s v): support point reference, or 0 (no face).
+    refs: Vec<u64>,
+    /// Per slot and fine face: whether its rectangle is that single face.
+    unit: Vec<bool>,
+}
+
+impl Sections {
+    pub(crate) fn new(s: i32) -> Self {
+        let slots = (3 * (s + 1) * 9) as usize;
+        let n = (s * s) as usize;
+        Sections {
+            s,
+            stamp: vec![0; slots],
+            generation: 0,
+            refs: vec![0; slots * n],
+            unit: vec![false; slots * n],
+        }
+    }
+
+    /// Forgets every section (a new refined voxel: slots are relative to it).
+    fn reset(&mut self) {
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 {
+            self.stamp.fill(0);
+            self.generation = 1;
+        }
+    }
+
+    /// Support point of the fine face on plane `plane` (global fine coordinate)
+    /// normal to `a`, whose fine cells have in-plane coordinates `fb`, `fc`
+    /// along axes `(a + 1) % 3`, `(a + 2) % 3`; and whether it is one face alone.
+    fn support(
+        &mut self,
+        ctx: &Ctx,
+        near: &Near,
+        a: usize,
+        plane: i32,
+        fb: i32,
+        fc: i32,
+    ) -> (Pt, bool) {
+        let s = self.s;
+        let (b, c) = ((a + 1) % 3, (a + 2) % 3);
+        let (sb, sc) = (fb.div_euclid(s), fc.div_euclid(s));
+        let off = plane - near.cell[a] * s;
+        debug_assert!((0..=s).contains(&off));
+        let db = sb - near.cell[b] + 1;
+        let dc = sc - near.cell[c] + 1;
+        debug_assert!((0..3).contains(&db) && (0..3).contains(&dc));
+        let slot = (((a as i32 * (s + 1) + off) * 3 + db) * 3 + dc) as usize;
+        let n = (s * s) as usize;
+        if self.stamp[slot] != self.generation {
+            self.stamp[slot] = self.generation;
+            self.fill(ctx, near, slot * n, [a, b, c], plane, sb, sc);
+        }
+        let i = slot * n + ((fb - sb * s) + s * (fc - sc * s)) as usize;
+        let r = self.refs[i];
+        debug_assert!(r != 0, "a boundary face has a rectangle");
+        let l = ctx.lat.unpack(r & !TAG_MASK);
+        ((r, ctx.lat.position(l)), self.unit[i])
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn fill(
+        &mut self,
+        ctx: &Ctx,
+        near: &Near,
+        at: usize,
+        axes: [usize; 3],
+        plane: i32,
+        sb: i32,
+        sc: i32,
+    ) {
+        let s = self.s;
+        let n = (s * s) as usize;
+        let [a, b, c] = axes;
+        // ordered pair per fine face (lo side, hi side), None where equal
+        let mut code = [u32::MAX; 49];
+        for v in 0..s {
+            for u in 0..s {
+                let mut f = [0i32; 3];
+                f[a] = plane;
+                f[b] = sb * s + u;
+                f[c] = sc * s + v;
+                let hi = near.fine_label(f, s);
+                f[a] = plane - 1;
+                let lo = near.fine_label(f, s);
+                if lo != hi {
+                    code[(u + s * v) as usize] = pair_code(lo, hi);
+                }
+            }
+        }
+        let refs = &mut self.refs[at..at + n];
+        let unit = &mut self.unit[at..at + n];
+        refs.fill(0);
+        let mut done = [false; 49];
+        for v0 in 0..s {
+            for u0 in 0..s {
+                let i0 = (u0 + s * v0) as usize;
+                if done[i0] || code[i0] == u32::MAX {
+                    continue;
+                }
+                let k = code[i0];
+                let mut u1 = u0;
+                while u1 + 1 < s
+                    && !done[(u1 + 1 + s * v0) as usize]
+                    && code[(u1 + 1 + s * v0) as usize] == k
+                {
+                    u1 += 1;
+                }
+                let mut v1 = v0;
+                while v1 + 1 < s
+                    && (u0..=u1).all(|u| {
+                        let i = (u + s * (v1 + 1)) as usize;
+                        !done[i] && code[i] == k
+                    })
+                {
+                    v1 += 1;
+                }
+                let mut l = [0i32; 3];
+                l[a] = 2 * (plane + s);
+                l[b] = 2 * sb * s + u0 + u1 + 1 + 2 * s;
+                l[c] = 2 * sc * s + v0 + v1 + 1 + 2 * s;
+                let r = key_ref(ctx.lat.key(l));
+                let single = u0 == u1 && v0 == v1;
+                for v in v0..=v1 {
+                    for u in u0..=u1 {
+                        let i = (u + s * v) as usize;
+                        done[i] = true;
+                        refs[i] = r;
+                        unit[i] = single;
+                    }
+                }
+            }
+        }
+    }
+}
+
+fn refined_cell(ctx: &Ctx, part: &mut Part, secs: &mut Sections, c: [i32; 3]) {
     let rv = ctx.rv;
     let s = ctx.lat.s;
     let near = Near::new(rv, c);
@@ -535,16 +687,18 @@ fn refined_cell(ctx: &Ctx, part: &mut Part, c: [i32; 3]) {
                     continue;
                 }
                 let p = [c[0] * s + lu, c[1] * s + lv, c[2] * s + lw];
-                fine_vertex(ctx, part, &near, &oct, p, table, ltable);
+                fine_vertex(ctx, part, secs, &near, &oct, p, table, ltable);
             }
         }
     }
 }
 
 /// Emits the polygons and junction chords of fine grid vertex `p`.
+#[allow(clippy::too_many_arguments)]
 fn fine_vertex(
     ctx: &Ctx,
     part: &mut Part,
+    secs: &mut Sections,
     near: &Near,
     oct: &[LabelId; 8],
     p: [i32; 3],
@@ -590,8 +744,8 @@ fn fine_vertex(
             let mut n = 0;
             let mut all_fine = true;
             for st in star.cycle(cy) {
-                let step = fine_step(ctx, near, oct, mask, p, &slots, st);
-                all_fine &= step.point.0 & TAG_MASK == TAG_KEY;
+                let (step, unit) = fine_step(ctx, secs, near, oct, mask, p, &slots, st);
+                all_fine &= unit;
                 // consecutive quarter-faces of one coarse face: one support point
                 if n > 0 && steps[n - 1].point.0 == step.point.0 {
                     steps[n - 1].out_edge = step.out_edge;
@@ -604,7 +758,7 @@ fn fine_vertex(
                 steps[0].in_edge = steps[n - 1].in_edge;
                 n -= 1;
             }
-            // only fine faces: the cycle has the unit geometry of its mask, scaled
+            // only single fine faces: the cycle has the unit geometry of its mask, scaled
             let lt = (all_fine && star.cycles == 1).then(|| &ltable.tris[mask as usize][..]);
             emit_cycle(ctx, part, l, &steps[..n], &vert, lt);
         }
@@ -642,44 +796,44 @@ fn half_edges(near: &Near, p: [i32; 3], s: i32) -> [i32; 6] {
     half
 }
 
-/// Support point and neighbour label of quarter-face `st.face` at fine vertex `p`.
+/// Support point and neighbour label of quarter-face `st.face` at fine vertex
+/// `p`, and whether the support point is that of the single fine face.
+#[allow(clippy::too_many_arguments)]
 fn fine_step(
     ctx: &Ctx,
+    secs: &mut Sections,
     near: &Near,
     oct: &[LabelId; 8],
     mask: u8,
     p: [i32; 3],
     slots: &[usize; 8],
     st: &CycleStep,
-) -> Step {
+) -> (Step, bool) {
     let f = st.face as usize;
     let (lo, hi) = face_octants(f);
     let other = if mask >> lo & 1 == 1 { hi } else { lo };
     let a = face_axis(f);
     let (sa, sb) = (slots[lo], slots[hi]);
-    let cb = near.cell_at(sb);
     let fb = [0, 1, 2].map(|ax| p[ax] - 1 + ((hi >> ax) & 1) as i32);
-    let point = if sa != sb && near.sub[sa].is_none() && near.sub[sb].is_none() {
+    let (point, unit) = if sa != sb && near.sub[sa].is_none() && near.sub[sb].is_none() {
+        let cb = near.cell_at(sb);
         let grid = ctx.rv.grid();
         let i = grid.padded_index(
             (cb[0] + 1) as usize,
             (cb[1] + 1) as usize,
             (cb[2] + 1) as usize,
         );
-        (ctx.faces.id(a, i) as u64, ctx.faces.centre(a, i))
+        ((ctx.faces.id(a, i) as u64, ctx.faces.centre(a, i)), false)
     } else {
-        let mut l = ctx.lat.of_fine_vertex(fb);
-        for (ax, v) in l.iter_mut().enumerate() {
-            if ax != a {
-                *v += 1;
-            }
-        }
-        (key_ref(ctx.lat.key(l)), ctx.lat.position(l))
+        secs.support(ctx, near, a, fb[a], fb[(a + 1) % 3], fb[(a + 2) % 3])
     };
-    Step {
-        point,
-        neighbour: oct[other],
-        in_edge: st.in_edge,
-        out_edge: st.out_edge,
-    }
+    (
+        Step {
+            point,
+            neighbour: oct[other],
+            in_edge: st.in_edge,
+            out_edge: st.out_edge,
+        },
+        unit,
+    )
 }
