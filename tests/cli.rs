@@ -1025,6 +1025,19 @@ fn extract_space_ras_negates_x_and_y_and_says_so() {
     assert!(text.contains("space RAS mm SPACE=RAS"));
 }
 
+#[test]
+fn check_on_a_patch_file_says_patches_are_open_by_design() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    extract_heart(&out, &[]);
+    let patch = walk(&out.join("patches")).remove(0);
+    let o = septa(["check", p(&patch)]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stdout(&o).contains("open by design"), "{}", stdout(&o));
+    let whole = septa(["check", p(&out.join("interfaces.ply"))]);
+    assert!(!stdout(&whole).contains("open by design"));
+}
+
 /// `--surface faces` encloses exactly the voxels of each label when nothing is
 /// refined: the validator's volume of each (bounded) label surface is the voxel
 /// count times the voxel volume, to rounding.
