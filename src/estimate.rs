@@ -118,6 +118,17 @@ impl Work {
     pub fn looks_like_intensity(&self) -> bool {
         self.labels >= 32 && self.boundary_share() > 0.5
     }
+
+    /// What to tell the user about a volume that
+    /// [looks like an intensity image](Work::looks_like_intensity).
+    pub fn intensity_note(&self) -> String {
+        format!(
+            "this looks like an intensity image, not a label map: {} distinct values, {:.0} % of the \
+             voxel faces between different ones; for grayscale data use `septa iso VOLUME --iso VALUE`",
+            self.labels,
+            100.0 * self.boundary_share()
+        )
+    }
 }
 
 /// Counts the work of extracting `volume` (one parallel pass over it);

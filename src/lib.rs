@@ -13,6 +13,10 @@
 //!    VESTA voxel-face vectors; patches share their boundaries exactly;
 //! 4. remeshing smooths and remeshes the patches to a target edge length.
 //!
+//! [`pipeline::run`] runs them all, from a volume and its config to the mesh,
+//! the reports and the [`io::manifest::Manifest`]; the `septa` command line
+//! and the Python package both call it.
+//!
 //! [`mesh`] holds the output type and the validator of the invariants every
 //! output keeps; [`geom`] the geometry kernel they share.
 
@@ -27,6 +31,7 @@ pub mod iso;
 pub mod mesh;
 pub mod output;
 pub mod phantom;
+pub mod pipeline;
 pub mod preprocess;
 pub mod remesh;
 pub mod star;

@@ -2,15 +2,19 @@
 //!
 //! Layout of `OUTDIR`:
 //! - `interfaces.ply` — every patch over one vertex pool (binary little-endian;
-//!   vertex `x, y, z` in LPS mm; face `vertex_indices`, `label_a`, `label_b`,
+//!   vertex `x, y, z` in LPS mm, or RAS mm when asked for; face `vertex_indices`, `label_a`, `label_b`,
 //!   `patch`);
 //! - `patches/<name_a>__<name_b>.ply` — one file per patch, with the global vertex
 //!   id as vertex property `vid`, so that boundaries match across files;
+//! - `interfaces.vtp` — the same as VTK XML PolyData, with cell data
+//!   `label_a`, `label_b`, `patch` (VTK's PLY reader, and so ParaView, 3D
+//!   Slicer and pyvista, drops PLY face properties);
 //! - `junctions.ply` — junction polylines as edges with the labels meeting there;
+//! - `junctions.vtp` — the same as VTK polylines, one per curve;
 //! - `manifest.json` — input, parameters, labels, patches, junctions, timings
 //!   and the validator's result;
-//! - optionally `interfaces.obj`, `interfaces.vtp` and `labels/<name>.stl` (the
-//!   closed outward surface of each label, for printing).
+//! - optionally `interfaces.obj` and `labels/<name>.stl` (the closed outward
+//!   surface of each label, for printing).
 //!
 //! Everything is written into a temporary directory beside `OUTDIR` and renamed
 //! into place at the end, so an interrupted run leaves no half-written output.
@@ -20,16 +24,21 @@
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-use crate::io::mesh_formats::{VtpEncoding, write_obj, write_stl_label_surface, write_vtp};
-use crate::io::mesh_ply::{write_junctions_ply, write_patch_plys_to, write_ply};
+use crate::io::Space;
+use crate::io::manifest::Manifest;
+use crate::io::mesh_formats::{
+    VtpEncoding, write_junctions_vtp, write_obj_in, write_stl_label_surface_in, write_vtp_in,
+};
+use crate::io::mesh_ply::{write_junctions_ply_in, write_patch_plys_in, write_ply_in};
 use crate::io::temp;
 use crate::mesh::InterfaceMesh;
 
-/// Extra file formats besides PLY.
+/// Extra file formats besides PLY and VTP (always written).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Formats {
+    /// `interfaces.obj`: all patches, one group each.
     pub obj: bool,
-    pub vtp: bool,
+    /// `labels/<name>.stl`: the closed outward surface of each label.
     pub stl: bool,
 }
 
@@ -441,14 +450,36 @@ pub fn check_outdir(outdir: &Path, input: Option<&Path>, force: bool) -> Result<
 }
 
 /// Writes all files of an extraction; `manifest` is completed with the list of
-/// files and written last. Returns the relative paths written.
+/// files (its `files`) and written last. Returns the relative paths written.
+///
+/// The files are in `space`: `mesh` (in LPS, as the pipeline makes it) is
+/// converted, and the manifest's `space` and every file's header say which.
 pub fn write_outdir(
     outdir: &OutDir,
     mesh: &InterfaceMesh,
     formats: Formats,
-    mut manifest: serde_json::Value,
+    space: Space,
+    manifest: &mut Manifest,
 ) -> Result<Vec<PathBuf>> {
-    outdir.write(|tmp| write_files(tmp, mesh, formats, &mut manifest))
+    let converted;
+    let mesh = if space == Space::Lps {
+        mesh
+    } else {
+        converted = space.mesh_from_lps(mesh);
+        &converted
+    };
+    manifest.space = space_description(space).to_string();
+    outdir.write(|tmp| write_files(tmp, mesh, formats, space, manifest))
+}
+
+/// The manifest's `space`.
+pub fn space_description(space: Space) -> &'static str {
+    match space {
+        Space::Lps => {
+            "LPS mm (x toward patient left, y posterior, z superior; as DICOM/ITK/3D Slicer)"
+        }
+        Space::Ras => "RAS mm (x toward patient right, y anterior, z superior; as NIfTI/nibabel)",
+    }
 }
 
 /// Fills a temporary directory beside `outdir` with `fill`, then moves it to
@@ -461,40 +492,45 @@ fn write_files(
     dir: &Path,
     mesh: &InterfaceMesh,
     formats: Formats,
-    manifest: &mut serde_json::Value,
+    space: Space,
+    manifest: &mut Manifest,
 ) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir.join("patches")).map_err(|e| Error::io(dir, e))?;
     let mut files = vec![PathBuf::from("interfaces.ply")];
-    write_ply(&dir.join("interfaces.ply"), mesh)?;
+    write_ply_in(&dir.join("interfaces.ply"), mesh, space)?;
     let paths = patch_paths(mesh);
-    let written = write_patch_plys_to(mesh, |p| dir.join(&paths[p]))?;
+    let written = write_patch_plys_in(mesh, |p| dir.join(&paths[p]), space)?;
     debug_assert_eq!(written, paths.len());
     files.extend(paths);
-    write_junctions_ply(&dir.join("junctions.ply"), mesh)?;
+    // VTK, ParaView, 3D Slicer and pyvista read labels from VTP only
+    write_vtp_in(
+        &dir.join("interfaces.vtp"),
+        mesh,
+        VtpEncoding::Base64,
+        space,
+    )?;
+    files.push("interfaces.vtp".into());
+    write_junctions_ply_in(&dir.join("junctions.ply"), mesh, space)?;
     files.push("junctions.ply".into());
+    write_junctions_vtp(&dir.join("junctions.vtp"), mesh, VtpEncoding::Base64, space)?;
+    files.push("junctions.vtp".into());
     if formats.obj {
-        write_obj(&dir.join("interfaces.obj"), mesh)?;
+        write_obj_in(&dir.join("interfaces.obj"), mesh, space)?;
         files.push("interfaces.obj".into());
     }
-    if formats.vtp {
-        write_vtp(&dir.join("interfaces.vtp"), mesh, VtpEncoding::Base64)?;
-        files.push("interfaces.vtp".into());
-    }
+
     if formats.stl {
         std::fs::create_dir_all(dir.join("labels")).map_err(|e| Error::io(dir, e))?;
         let names = label_file_names(mesh);
         for l in mesh.labels_with_patches() {
             let rel = PathBuf::from("labels").join(format!("{}.stl", names[l as usize]));
-            write_stl_label_surface(&dir.join(&rel), mesh, l)?;
+            write_stl_label_surface_in(&dir.join(&rel), mesh, l, space)?;
             files.push(rel);
         }
     }
     files.push("manifest.json".into());
-    manifest["files"] = serde_json::json!(files.iter().map(|f| rel_string(f)).collect::<Vec<_>>());
-    let mut json =
-        serde_json::to_vec_pretty(manifest).map_err(|e| Error::invalid(e.to_string()))?;
-    json.push(b'\n');
-    crate::io::atomic_write(&dir.join("manifest.json"), &json)?;
+    manifest.files = files.iter().map(|f| rel_string(f)).collect();
+    manifest.write(&dir.join("manifest.json"))?;
     Ok(files)
 }
 

@@ -961,6 +961,83 @@ fn extract_extra_formats() {
     assert_eq!(faces, m["triangles"].as_u64().unwrap());
 }
 
+/// The `<Piece …>` attribute `name` of a `.vtp` file.
+fn vtp_piece_count(text: &str, name: &str) -> u64 {
+    let piece = &text[text.find("<Piece").unwrap()..];
+    let at = piece.find(&format!("{name}=\"")).unwrap() + name.len() + 2;
+    piece[at..at + piece[at..].find('"').unwrap()]
+        .parse()
+        .unwrap()
+}
+
+#[test]
+fn extract_writes_vtp_with_labels_and_junction_polylines_by_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    extract_heart(&out, &[]);
+    let m = manifest(&out);
+    let vtp = std::fs::read_to_string(out.join("interfaces.vtp")).unwrap();
+    assert!(vtp.contains("space LPS mm SPACE=LPS"));
+    assert_eq!(vtp_piece_count(&vtp, "NumberOfPolys"), m["triangles"]);
+    for name in ["label_a", "label_b", "patch"] {
+        assert!(vtp.contains(&format!("Name=\"{name}\"")), "{name}");
+    }
+    let junctions = std::fs::read_to_string(out.join("junctions.vtp")).unwrap();
+    let curves = m["junction_curves"].as_array().unwrap();
+    assert_eq!(
+        vtp_piece_count(&junctions, "NumberOfLines"),
+        curves.len() as u64
+    );
+    assert_eq!(vtp_piece_count(&junctions, "NumberOfPolys"), 0);
+    // ascii: trimesh reads the edge lists
+    let ply = std::fs::read_to_string(out.join("junctions.ply")).unwrap();
+    assert!(ply.starts_with("ply\nformat ascii 1.0\n"));
+}
+
+#[test]
+fn extract_space_ras_negates_x_and_y_and_says_so() {
+    use septa::io::mesh_ply::read_ply;
+    let dir = tempfile::tempdir().unwrap();
+    let (lps, ras) = (dir.path().join("lps"), dir.path().join("ras"));
+    extract_heart(&lps, &[]);
+    extract_heart(&ras, &["--space", "ras"]);
+    let (a, b) = (
+        read_ply(&lps.join("interfaces.ply")).unwrap().mesh,
+        read_ply(&ras.join("interfaces.ply")).unwrap().mesh,
+    );
+    assert_eq!(a.triangles, b.triangles);
+    for (p, q) in a.positions.iter().zip(&b.positions) {
+        assert_eq!((p.x, p.y, p.z), (-q.x, -q.y, q.z));
+    }
+    assert!(manifest(&ras)["space"].as_str().unwrap().starts_with("RAS"));
+    assert!(manifest(&lps)["space"].as_str().unwrap().starts_with("LPS"));
+    for f in [
+        "interfaces.ply",
+        "junctions.ply",
+        "interfaces.vtp",
+        "junctions.vtp",
+    ] {
+        let text = String::from_utf8_lossy(&std::fs::read(ras.join(f)).unwrap()[..400]).to_string();
+        assert!(text.contains("SPACE=RAS"), "{f}");
+    }
+    let patch = walk(&ras.join("patches")).remove(0);
+    let text = String::from_utf8_lossy(&std::fs::read(patch).unwrap()[..300]).to_string();
+    assert!(text.contains("space RAS mm SPACE=RAS"));
+}
+
+#[test]
+fn check_on_a_patch_file_says_patches_are_open_by_design() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    extract_heart(&out, &[]);
+    let patch = walk(&out.join("patches")).remove(0);
+    let o = septa(["check", p(&patch)]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stdout(&o).contains("open by design"), "{}", stdout(&o));
+    let whole = septa(["check", p(&out.join("interfaces.ply"))]);
+    assert!(!stdout(&whole).contains("open by design"));
+}
+
 /// `--surface faces` encloses exactly the voxels of each label when nothing is
 /// refined: the validator's volume of each (bounded) label surface is the voxel
 /// count times the voxel volume, to rounding.

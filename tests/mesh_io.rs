@@ -123,7 +123,7 @@ fn ply_header_is_as_documented() {
         + 11;
     let header = std::str::from_utf8(&bytes[..end]).unwrap();
     let expected = format!(
-        "ply\nformat binary_little_endian 1.0\ncomment septa {}\ncomment space LPS mm\n\
+        "ply\nformat binary_little_endian 1.0\ncomment septa {}\ncomment space LPS mm SPACE=LPS\n\
          comment label 0 background\ncomment label 5 left hippocampus\ncomment label 9 right thing\n\
          element vertex 6\nproperty float x\nproperty float y\nproperty float z\n\
          element face 8\nproperty list uchar int vertex_indices\nproperty int label_a\n\
@@ -756,26 +756,63 @@ fn vtp_ascii_and_base64_hold_points_polys_and_cell_data() {
 // ───────────────────────────── manifest ─────────────────────────────
 
 #[test]
-fn manifest_lists_patches_and_files() {
+fn manifest_of_the_pipeline_lists_patches_and_files() {
     let dir = tempfile::tempdir().unwrap();
-    let mesh = octahedron();
-    let mut manifest = septa::io::manifest::Manifest::new(&mesh);
-    manifest.add_file("ply", &dir.path().join("octa.ply"));
-    let path = dir.path().join("manifest.json");
-    manifest.write(&path).unwrap();
+    let volume = septa::phantom::heart(&septa::phantom::PhantomParams {
+        size: 16,
+        ..Default::default()
+    })
+    .unwrap();
+    let options = septa::pipeline::PipelineOptions {
+        remesh: septa::config::RemeshOptions {
+            enabled: Some(false),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let config = septa::config::Config::default();
+    let mut result = septa::pipeline::run(volume, &config, &options, &mut |_| {}).unwrap();
+    let out = septa::output::OutDir::new(dir.path().join("out"), false);
+    let formats = septa::output::Formats::default();
+    let space = septa::io::Space::Lps;
+    let files =
+        septa::output::write_outdir(&out, &result.mesh, formats, space, &mut result.manifest)
+            .unwrap();
+    let path = dir.path().join("out/manifest.json");
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
-    assert_eq!(json["triangles"], 8);
-    assert_eq!(json["labels"][1]["name"], "left hippocampus");
-    let p1 = &json["patches"][1];
+    // the same keys as the typed manifest (values to JSON's float rounding)
+    let typed = result.manifest.to_value().unwrap();
+    let keys = |v: &serde_json::Value| v.as_object().unwrap().keys().cloned().collect::<Vec<_>>();
+    assert_eq!(keys(&json), keys(&typed));
+    for (a, b) in json["patches"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(typed["patches"].as_array().unwrap())
+    {
+        assert_eq!(
+            (&a["file"], &a["label_a"], &a["label_b"]),
+            (&b["file"], &b["label_a"], &b["label_b"])
+        );
+    }
+    assert_eq!(json["triangles"], result.mesh.triangle_count());
+    assert_eq!(json["files"].as_array().unwrap().len(), files.len());
     assert_eq!(
-        (p1["label_a"].as_i64(), p1["label_b"].as_i64()),
-        (Some(5), Some(9))
+        json["files"].as_array().unwrap().last().unwrap(),
+        "manifest.json"
     );
-    assert_eq!(p1["triangles"], 4);
-    // four faces of a 1.5 × 1.5 × 2.25 half-octahedron
-    let face = 0.5 * (DVec3::new(-1.5, 1.5, 0.0).cross(DVec3::new(-1.5, 0.0, -2.25))).length();
-    assert!((p1["area_mm2"].as_f64().unwrap() - 4.0 * face).abs() < 1e-9);
-    assert_eq!(json["files"][0]["kind"], "ply");
+    for (i, p) in result.mesh.patches.iter().enumerate() {
+        let m = &json["patches"][i];
+        assert_eq!(m["label_a"], result.mesh.label_value(p.labels[0]));
+        assert!(
+            dir.path()
+                .join("out")
+                .join(m["file"].as_str().unwrap())
+                .is_file()
+        );
+    }
+    assert!(json["quality"].is_null());
+    assert_eq!(json["validation"]["passed"], true);
 }
 
 // ───────────────────────────── speed ─────────────────────────────

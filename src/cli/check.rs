@@ -36,6 +36,11 @@ pub struct CheckArgs {
     pub target_edge: Option<f64>,
 }
 
+/// Said when a patch file (one with the `vid` vertex property) fails.
+const PATCH_FILE_NOTE: &str = "note: this is a single patch file (its vertices carry `vid`): a \
+     patch is open by design, its boundary is where it meets the other patches, so the \
+     closed-surface checks fail on it alone; check interfaces.ply for the whole mesh";
+
 pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
     let stage = ui.stage("reading");
     let ply = read_ply(&args.mesh)?;
@@ -88,6 +93,9 @@ pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
             secs(t_check)
         ));
         ui.say(report.summary().trim_end());
+        if !report.passed() && ply.vertex_ids.is_some() {
+            ui.say(PATCH_FILE_NOTE);
+        }
         if ui.verbose > 0 {
             for l in &report.labels {
                 ui.say(format!(

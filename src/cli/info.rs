@@ -20,12 +20,7 @@ pub struct InfoArgs {
 
 /// What to say about a volume that looks like an intensity image.
 pub fn intensity_note(work: &septa::estimate::Work) -> String {
-    format!(
-        "this looks like an intensity image, not a label map: {} distinct values, {:.0} % of the \
-         voxel faces between different ones; for grayscale data use `septa iso VOLUME --iso VALUE`",
-        work.labels,
-        100.0 * work.boundary_share()
-    )
+    work.intensity_note()
 }
 
 pub fn run(args: &InfoArgs, ui: &Ui) -> Result<ExitCode> {

@@ -126,17 +126,21 @@ pub struct Loaded {
     pub volume: LabelVolume,
     pub config: Config,
     pub resolved: Resolved,
-    /// Every file read: the volume's header and data files, the config.
-    pub sources: Vec<PathBuf>,
 }
 
-/// Reads the volume and the config and resolves one against the other.
-fn load(args: &VolumeArgs, ui: &ui::Ui) -> Result<Loaded> {
+/// Reads the config and the volume (not yet resolved against each other);
+/// also every file read (the volume's header and data files, the config).
+fn read(args: &VolumeArgs) -> Result<(LabelVolume, Config, Vec<PathBuf>)> {
     let config = args.config()?;
     let image = septa::io::read_image(&args.volume, &args.read_options()?)?;
     let mut sources = image.sources.clone();
     sources.extend(args.config.iter().cloned());
-    let volume = image.into_label_volume()?;
+    Ok((image.into_label_volume()?, config, sources))
+}
+
+/// Reads the volume and the config and resolves one against the other.
+fn load(args: &VolumeArgs, ui: &ui::Ui) -> Result<Loaded> {
+    let (volume, config, _) = read(args)?;
     let (volume, resolved) = config.resolve(volume)?;
     for w in &resolved.warnings {
         ui.warn(w);
@@ -145,7 +149,6 @@ fn load(args: &VolumeArgs, ui: &ui::Ui) -> Result<Loaded> {
         volume,
         config,
         resolved,
-        sources,
     })
 }
 

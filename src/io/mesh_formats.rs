@@ -6,7 +6,7 @@
 //!
 //! ```text
 //! # septa 0.1.0
-//! # space LPS mm
+//! # space LPS mm SPACE=LPS         (or RAS: the space the file is in)
 //! # label <value> <name>          (one per label)
 //! v <x> <y> <z>                   (every vertex, shortest exact decimal of the f64)
 //! o <name_a>__<name_b>            (one group per patch, in patch order)
@@ -43,8 +43,8 @@ use std::path::Path;
 
 use glam::DVec3;
 
-use super::atomic_write_with;
 use super::mesh_ply::{check_writable, one_line, patch_values};
+use super::{Space, atomic_write_with};
 use crate::error::{Error, Result};
 use crate::mesh::InterfaceMesh;
 use crate::volume::LabelId;
@@ -66,8 +66,8 @@ fn obj_token(name: &str) -> String {
     }
 }
 
-fn write_obj_body(w: &mut dyn Write, mesh: &InterfaceMesh) -> io::Result<()> {
-    writeln!(w, "# septa {VERSION}\n# space LPS mm")?;
+fn write_obj_body(w: &mut dyn Write, mesh: &InterfaceMesh, space: Space) -> io::Result<()> {
+    writeln!(w, "# septa {VERSION}\n# space {}", space.comment())?;
     for l in &mesh.labels {
         writeln!(w, "# label {} {}", l.value, one_line(&l.name))?;
     }
@@ -88,8 +88,13 @@ fn write_obj_body(w: &mut dyn Write, mesh: &InterfaceMesh) -> io::Result<()> {
 /// Writes the mesh as a Wavefront OBJ file, one group per patch over a shared
 /// vertex list. Atomic.
 pub fn write_obj(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
+    write_obj_in(path, mesh, Space::Lps)
+}
+
+/// [`write_obj`] of a mesh whose positions are in `space` (the header says so).
+pub fn write_obj_in(path: &Path, mesh: &InterfaceMesh, space: Space) -> Result<()> {
     check_writable(mesh)?;
-    atomic_write_with(path, |w| write_obj_body(w, mesh))
+    atomic_write_with(path, |w| write_obj_body(w, mesh, space))
 }
 
 // ───────────────────────────── STL ─────────────────────────────
@@ -152,6 +157,16 @@ pub fn write_stl(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
 /// Writes the closed surface of `label` (dense id) as binary STL: the
 /// triangles of every patch touching it, normals pointing away from it. Atomic.
 pub fn write_stl_label_surface(path: &Path, mesh: &InterfaceMesh, label: LabelId) -> Result<()> {
+    write_stl_label_surface_in(path, mesh, label, Space::Lps)
+}
+
+/// [`write_stl_label_surface`] of a mesh whose positions are in `space`.
+pub fn write_stl_label_surface_in(
+    path: &Path,
+    mesh: &InterfaceMesh,
+    label: LabelId,
+    space: Space,
+) -> Result<()> {
     check_writable(mesh)?;
     if label as usize >= mesh.labels.len() {
         return Err(Error::invalid(format!(
@@ -171,9 +186,10 @@ pub fn write_stl_label_surface(path: &Path, mesh: &InterfaceMesh, label: LabelId
         )));
     }
     let header = format!(
-        "septa {VERSION} surface of label {} {}, LPS mm",
+        "septa {VERSION} surface of label {} {}, {}",
         mesh.label_value(label),
-        one_line(&mesh.label_name(label))
+        one_line(&mesh.label_name(label)),
+        space.comment()
     );
     write_stl_facets(path, &header, mesh, &facets)
 }
@@ -328,15 +344,27 @@ fn xml_comment_text(s: &str) -> String {
     one_line(s).replace("--", "- -")
 }
 
+/// What one `<Piece>` of a `.vtp` file holds: counts, and which arrays go
+/// into which element (`Points`, `Polys`, `Lines`, `PointData`, `CellData`).
+struct VtpPiece<'a> {
+    space: Space,
+    points: usize,
+    lines: usize,
+    polys: usize,
+    groups: &'a [(&'a str, &'a str, std::ops::Range<usize>)],
+}
+
 fn write_vtp_body(
     w: &mut dyn Write,
     mesh: &InterfaceMesh,
+    piece: &VtpPiece<'_>,
     arrays: &[VtpArray],
     enc: VtpEncoding,
 ) -> io::Result<()> {
     writeln!(
         w,
-        "<?xml version=\"1.0\"?>\n<!-- septa {VERSION}, space LPS mm -->"
+        "<?xml version=\"1.0\"?>\n<!-- septa {VERSION}, space {} -->",
+        piece.space.comment()
     )?;
     for l in &mesh.labels {
         writeln!(
@@ -351,10 +379,10 @@ fn write_vtp_body(
         "<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">"
     )?;
     writeln!(w, "  <PolyData>")?;
-    let (n, t) = (mesh.vertex_count(), mesh.triangle_count());
+    let (n, l, t) = (piece.points, piece.lines, piece.polys);
     writeln!(
         w,
-        "    <Piece NumberOfPoints=\"{n}\" NumberOfVerts=\"0\" NumberOfLines=\"0\" NumberOfStrips=\"0\" NumberOfPolys=\"{t}\">"
+        "    <Piece NumberOfPoints=\"{n}\" NumberOfVerts=\"0\" NumberOfLines=\"{l}\" NumberOfStrips=\"0\" NumberOfPolys=\"{t}\">"
     )?;
     let mut offsets = Vec::with_capacity(arrays.len());
     let mut at = 0;
@@ -362,14 +390,9 @@ fn write_vtp_body(
         offsets.push(at);
         at += b64_len(8) + b64_len(a.bytes.len());
     }
-    let groups: [(&str, &str, std::ops::Range<usize>); 3] = [
-        ("Points", "", 0..1),
-        ("Polys", "", 1..3),
-        ("CellData", " Scalars=\"patch\"", 3..6),
-    ];
-    for (tag, attrs, range) in groups {
+    for (tag, attrs, range) in piece.groups {
         writeln!(w, "      <{tag}{attrs}>")?;
-        for i in range {
+        for i in range.clone() {
             data_array(w, &arrays[i], offsets[i], enc)?;
         }
         writeln!(w, "      </{tag}>")?;
@@ -388,7 +411,124 @@ fn write_vtp_body(
 
 /// Writes the mesh as VTK XML PolyData (layout in the module docs). Atomic.
 pub fn write_vtp(path: &Path, mesh: &InterfaceMesh, encoding: VtpEncoding) -> Result<()> {
+    write_vtp_in(path, mesh, encoding, Space::Lps)
+}
+
+/// [`write_vtp`] of a mesh whose positions are in `space` (the header says so).
+pub fn write_vtp_in(
+    path: &Path,
+    mesh: &InterfaceMesh,
+    encoding: VtpEncoding,
+    space: Space,
+) -> Result<()> {
     check_writable(mesh)?;
     let arrays = vtp_arrays(mesh, encoding)?;
-    atomic_write_with(path, |w| write_vtp_body(w, mesh, &arrays, encoding))
+    let piece = VtpPiece {
+        space,
+        points: mesh.vertex_count(),
+        lines: 0,
+        polys: mesh.triangle_count(),
+        groups: &[
+            ("Points", "", 0..1),
+            ("Polys", "", 1..3),
+            ("CellData", " Scalars=\"patch\"", 3..6),
+        ],
+    };
+    atomic_write_with(path, |w| write_vtp_body(w, mesh, &piece, &arrays, encoding))
+}
+
+/// Label slots of a junction curve in `labels` that it does not fill.
+pub const NO_LABEL: i32 = i32::MIN;
+
+/// Writes the junction curves as VTK XML PolyData: one polyline (`Lines`
+/// cell) per curve over the curves' vertices (a closed curve ends where it
+/// starts); point data `vid` (the vertex's id in the whole mesh), cell data
+/// `curve` (its index in the manifest's `junction_curves`), `label_count`
+/// and `labels` (the values of the labels meeting there, ascending, as many
+/// components as the most labels any curve has, the rest [`NO_LABEL`]).
+/// Atomic.
+pub fn write_junctions_vtp(
+    path: &Path,
+    mesh: &InterfaceMesh,
+    encoding: VtpEncoding,
+    space: Space,
+) -> Result<()> {
+    check_writable(mesh)?;
+    let n = mesh.vertex_count();
+    if mesh
+        .junctions
+        .iter()
+        .flat_map(|c| &c.vertices)
+        .any(|&v| v as usize >= n)
+    {
+        return Err(Error::invalid(
+            "a junction curve refers to a vertex that does not exist",
+        ));
+    }
+    let values = |c: &crate::mesh::JunctionCurve| -> Result<Vec<i32>> {
+        c.labels
+            .iter()
+            .map(|&l| {
+                i32::try_from(mesh.label_value(l))
+                    .map_err(|_| Error::invalid("a label value does not fit 32 bits"))
+            })
+            .collect()
+    };
+    let width = mesh
+        .junctions
+        .iter()
+        .map(|c| c.labels.len())
+        .max()
+        .unwrap_or(1)
+        .max(1);
+    let mut local = vec![u32::MAX; n];
+    let mut vid: Vec<i64> = Vec::new();
+    let (mut conn, mut offsets) = (Vec::<i64>::new(), Vec::<i64>::new());
+    let (mut curve, mut label_count, mut labels) = (Vec::new(), Vec::new(), Vec::new());
+    for (c, j) in mesh.junctions.iter().enumerate() {
+        let mut ids: Vec<u32> = j.vertices.clone();
+        if j.closed && ids.len() > 2 {
+            ids.push(ids[0]);
+        }
+        for v in ids {
+            if local[v as usize] == u32::MAX {
+                local[v as usize] = vid.len() as u32;
+                vid.push(i64::from(v));
+            }
+            conn.push(i64::from(local[v as usize]));
+        }
+        offsets.push(conn.len() as i64);
+        curve.push(c as i32);
+        let mut l = values(j)?;
+        label_count.push(l.len() as i32);
+        l.resize(width, NO_LABEL);
+        labels.extend(l);
+    }
+    let points: Vec<f32> = vid
+        .iter()
+        .flat_map(|&v| mesh.positions[v as usize].to_array().map(|c| c as f32))
+        .collect();
+    let vid: Vec<i64> = vid;
+    let arrays = vec![
+        vtp_array("Points", 3, &points, encoding),
+        vtp_array("connectivity", 1, &conn, encoding),
+        vtp_array("offsets", 1, &offsets, encoding),
+        vtp_array("vid", 1, &vid, encoding),
+        vtp_array("curve", 1, &curve, encoding),
+        vtp_array("label_count", 1, &label_count, encoding),
+        vtp_array("labels", width, &labels, encoding),
+    ];
+    let piece = VtpPiece {
+        space,
+        points: points.len() / 3,
+        lines: offsets.len(),
+        polys: 0,
+        groups: &[
+            ("Points", "", 0..1),
+            ("Lines", "", 1..3),
+            ("PointData", "", 3..4),
+            ("CellData", " Scalars=\"curve\"", 4..7),
+        ],
+    };
+    atomic_write_with(path, |w| write_vtp_body(w, mesh, &piece, &arrays, encoding))
 }

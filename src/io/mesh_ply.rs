@@ -8,7 +8,8 @@
 //!
 //! # Files written
 //!
-//! All files are `binary_little_endian 1.0`, written atomically. Vertex ids in
+//! All files are `binary_little_endian 1.0` but the junction file (`ascii
+//! 1.0`, which trimesh reads edge lists from), written atomically. Vertex ids in
 //! lists are `int`, label values are the original label **values** of the volume
 //! (not septa's dense ids). The header of the whole mesh ([`write_ply`]) is:
 //!
@@ -16,7 +17,7 @@
 //! ply
 //! format binary_little_endian 1.0
 //! comment septa 0.1.0
-//! comment space LPS mm
+//! comment space LPS mm SPACE=LPS  (RAS when written in RAS; SPACE= as 3D Slicer reads it)
 //! comment label 0 background        (one line per label: value, then name)
 //! comment label 3 left hippocampus
 //! element vertex 1234
@@ -90,7 +91,7 @@ use ply_rs_bw::ply::{
 };
 use ply_rs_bw::writer::Writer;
 
-use super::{atomic_write_with, read_file};
+use super::{Space, atomic_write_with, read_file};
 use crate::error::{Error, Result};
 use crate::mesh::{InterfaceMesh, LabelInfo, Patch};
 use crate::volume::{LabelId, MAX_LABELS};
@@ -326,11 +327,12 @@ fn header(
     labels: impl IntoIterator<Item = LabelId>,
     extra_comments: &[String],
     elements: Vec<ElementDef>,
+    space: Space,
 ) -> Header {
     let mut h = Header::new();
     h.encoding = Encoding::BinaryLittleEndian;
     h.comments.push(format!("septa {VERSION}"));
-    h.comments.push("space LPS mm".to_string());
+    h.comments.push(format!("space {}", space.comment()));
     for id in labels {
         let Some(l) = mesh.labels.get(id as usize) else {
             continue;
@@ -372,6 +374,20 @@ fn write_items<E: PropertyAccess>(
     w.write_all(&buf)
 }
 
+/// Like [`write_items`], as ascii lines (for the small junction files).
+fn write_items_ascii<E: PropertyAccess>(
+    w: &mut dyn Write,
+    def: &ElementDef,
+    items: impl Iterator<Item = E>,
+) -> io::Result<()> {
+    let writer = Writer::<E>::new();
+    let mut buf = Vec::new();
+    for item in items {
+        writer.write_ascii_element(&mut buf, &item, def)?;
+    }
+    w.write_all(&buf)
+}
+
 fn write_header_to(mut w: &mut dyn Write, h: &Header) -> io::Result<()> {
     Writer::<VertexOut>::new()
         .write_header(&mut w, h)
@@ -380,6 +396,11 @@ fn write_header_to(mut w: &mut dyn Write, h: &Header) -> io::Result<()> {
 
 /// Writes the whole mesh as one binary PLY (layout in the module docs). Atomic.
 pub fn write_ply(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
+    write_ply_in(path, mesh, Space::Lps)
+}
+
+/// [`write_ply`] of a mesh whose positions are in `space` (the header says so).
+pub fn write_ply_in(path: &Path, mesh: &InterfaceMesh, space: Space) -> Result<()> {
     check_writable(mesh)?;
     let values = patch_values(mesh)?;
     let h = header(
@@ -390,6 +411,7 @@ pub fn write_ply(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
             vertex_element(mesh.vertex_count(), false),
             face_element(mesh.triangle_count()),
         ],
+        space,
     );
     let vertices = (0..mesh.vertex_count() as u32).map(|v| VertexOut::new_at(mesh, v));
     let faces = mesh
@@ -450,7 +472,7 @@ pub fn write_patch_ply(path: &Path, mesh: &InterfaceMesh, patch: u32) -> Result<
         .filter(|&t| mesh.triangle_patch[t as usize] == patch)
         .collect();
     let mut local = LocalIds::new(mesh.vertex_count());
-    write_patch(path, mesh, patch, &values, &tris, &mut local)
+    write_patch(path, mesh, patch, &values, &tris, &mut local, Space::Lps)
 }
 
 /// Writes patch `patch` made of triangles `tris` (the mesh is checked).
@@ -461,6 +483,7 @@ fn write_patch(
     values: &[[i32; 2]],
     tris: &[u32],
     local: &mut LocalIds,
+    space: Space,
 ) -> Result<()> {
     let Some(&[va, vb]) = values.get(patch as usize) else {
         return Err(Error::invalid(format!(
@@ -478,6 +501,7 @@ fn write_patch(
         mesh.patches[patch as usize].labels,
         &[comment],
         elements,
+        space,
     );
     let vertices = used.iter().map(|&v| VertexOut::new_at(mesh, v));
     let faces = tris.iter().map(|t| FaceOut {
@@ -522,12 +546,29 @@ pub fn write_patch_plys_to(
     mesh: &InterfaceMesh,
     path_of: impl Fn(usize) -> PathBuf,
 ) -> Result<usize> {
+    write_patch_plys_in(mesh, path_of, Space::Lps)
+}
+
+/// [`write_patch_plys_to`] of a mesh whose positions are in `space`.
+pub fn write_patch_plys_in(
+    mesh: &InterfaceMesh,
+    path_of: impl Fn(usize) -> PathBuf,
+    space: Space,
+) -> Result<usize> {
     check_writable(mesh)?;
     let values = patch_values(mesh)?;
     let groups = mesh.patch_triangles();
     let mut local = LocalIds::new(mesh.vertex_count());
     for (p, tris) in groups.iter().enumerate() {
-        write_patch(&path_of(p), mesh, p as u32, &values, tris, &mut local)?;
+        write_patch(
+            &path_of(p),
+            mesh,
+            p as u32,
+            &values,
+            tris,
+            &mut local,
+            space,
+        )?;
     }
     Ok(groups.len())
 }
@@ -566,6 +607,11 @@ fn junction_labels(mesh: &InterfaceMesh) -> Result<Vec<Vec<i32>>> {
 /// Writes the junction curves: their vertices (with global `vid`) and one
 /// `edge` per segment (layout in the module docs). Atomic.
 pub fn write_junctions_ply(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
+    write_junctions_ply_in(path, mesh, Space::Lps)
+}
+
+/// [`write_junctions_ply`] of a mesh whose positions are in `space`.
+pub fn write_junctions_ply_in(path: &Path, mesh: &InterfaceMesh, space: Space) -> Result<()> {
     check_writable(mesh)?;
     let n = mesh.vertex_count();
     if mesh
@@ -592,12 +638,16 @@ pub fn write_junctions_ply(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
         .iter()
         .flat_map(|c| c.labels.iter().copied())
         .collect();
-    let h = header(
+    let mut h = header(
         mesh,
         on_curves,
         &[],
         vec![vertex_element(used.len(), true), edge_element(edges.len())],
+        space,
     );
+    // ascii: trimesh reads list properties of edges only there (and the
+    // file is small: the curves' vertices only)
+    h.encoding = Encoding::Ascii;
     let vertices = used.iter().map(|&v| VertexOut::new_at(mesh, v));
     let items = edges.iter().map(|&(v, curve)| EdgeOut {
         v,
@@ -606,8 +656,8 @@ pub fn write_junctions_ply(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
     });
     atomic_write_with(path, |w| {
         write_header_to(w, &h)?;
-        write_items(w, &h.elements["vertex"], vertices)?;
-        write_items(w, &h.elements["edge"], items)
+        write_items_ascii(w, &h.elements["vertex"], vertices)?;
+        write_items_ascii(w, &h.elements["edge"], items)
     })
 }
 

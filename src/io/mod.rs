@@ -27,6 +27,52 @@ use std::path::{Path, PathBuf};
 use crate::error::{Error, Result};
 use crate::volume::{Dims, Geometry, LabelId, LabelVolume, MAX_LABELS};
 
+/// The patient coordinate system mesh files are written in, in mm. septa
+/// works in LPS (DICOM, ITK, 3D Slicer); RAS (NIfTI, nibabel, FreeSurfer)
+/// is LPS with x and y negated, a rotation: triangles keep their orientation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Space {
+    /// x toward patient left, y posterior, z superior.
+    #[default]
+    Lps,
+    /// x toward patient right, y anterior, z superior.
+    Ras,
+}
+
+impl Space {
+    /// `LPS` or `RAS` (also 3D Slicer's `SPACE=` token).
+    pub fn name(self) -> &'static str {
+        match self {
+            Space::Lps => "LPS",
+            Space::Ras => "RAS",
+        }
+    }
+
+    /// What the header comment of a mesh file says: `LPS mm SPACE=LPS`.
+    pub fn comment(self) -> String {
+        format!("{} mm SPACE={}", self.name(), self.name())
+    }
+
+    /// A position given in LPS, in this space.
+    pub fn from_lps(self, p: glam::DVec3) -> glam::DVec3 {
+        match self {
+            Space::Lps => p,
+            Space::Ras => glam::DVec3::new(-p.x, -p.y, p.z),
+        }
+    }
+
+    /// `mesh` with its positions in this space (from LPS).
+    pub fn mesh_from_lps(self, mesh: &crate::mesh::InterfaceMesh) -> crate::mesh::InterfaceMesh {
+        let mut out = mesh.clone();
+        if self != Space::Lps {
+            out.positions
+                .iter_mut()
+                .for_each(|p| *p = self.from_lps(*p));
+        }
+        out
+    }
+}
+
 /// Sample type of a voxel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
