@@ -178,9 +178,10 @@ fn query_pairs(
     hits
 }
 
-/// An axis-aligned box in `f32`.
-#[derive(Clone, Copy)]
-struct Box32 {
+/// An axis-aligned box in `f32` (rounded outward from `f64`): half the
+/// memory of a `f64` box, for the broad phase of intersection tests.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Box32 {
     lo: [f32; 3],
     hi: [f32; 3],
 }
@@ -192,7 +193,7 @@ impl Box32 {
     };
 
     /// The smallest `f32` box holding `[lo, hi]` (NaN: everything).
-    fn outward(lo: DVec3, hi: DVec3) -> Self {
+    pub(crate) fn outward(lo: DVec3, hi: DVec3) -> Self {
         Box32 {
             lo: lo.to_array().map(f32_down),
             hi: hi.to_array().map(f32_up),
@@ -208,7 +209,7 @@ impl Box32 {
     }
 
     #[inline]
-    fn overlaps(&self, o: &Box32) -> bool {
+    pub(crate) fn overlaps(&self, o: &Box32) -> bool {
         (self.lo[0] <= o.hi[0])
             & (o.lo[0] <= self.hi[0])
             & (self.lo[1] <= o.hi[1])
@@ -482,20 +483,7 @@ mod tests {
         assert_eq!(found, vec![(0, 1)]);
     }
 
-    /// A small pseudo-random generator for the tests.
-    struct Rng(u64);
-
-    impl Rng {
-        fn next(&mut self) -> f64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn below(&mut self, n: usize) -> usize {
-            ((self.next() * n as f64) as usize).min(n - 1)
-        }
-    }
+    use crate::geom::test_rng::Rng;
 
     /// A soup of small triangles over a pool of points that they share (so
     /// there are shared vertices and edges), some of them on a few planes with

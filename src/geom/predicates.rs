@@ -495,20 +495,7 @@ fn coplanar_wedges_overlap(v: DVec3, s1: DVec3, s2: DVec3, t1: DVec3, t2: DVec3)
 mod tests {
     use super::*;
 
-    /// A small pseudo-random generator for the tests.
-    struct Rng(u64);
-
-    impl Rng {
-        fn next(&mut self) -> f64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn below(&mut self, n: usize) -> usize {
-            ((self.next() * n as f64) as usize).min(n - 1)
-        }
-    }
+    use crate::geom::test_rng::Rng;
 
     #[test]
     fn off_plane_matches_its_reference() {

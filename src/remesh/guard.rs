@@ -20,7 +20,8 @@ use glam::DVec3;
 
 use super::halfedge::{HalfedgeMesh, NONE};
 use super::isotropic::PatchState;
-use crate::geom::predicates::{f32_down, f32_up, triangles_cross};
+use crate::geom::intersect::Box32;
+use crate::geom::predicates::triangles_cross;
 
 /// A vertex's identity: equal keys are the same vertex.
 pub(super) type Key = u64;
@@ -66,6 +67,12 @@ impl Tri {
                 vertex_key(m, p, v[2]),
             ],
         }
+    }
+
+    #[inline]
+    fn box32(&self) -> Box32 {
+        let (lo, hi) = self.bounds();
+        Box32::outward(lo, hi)
     }
 
     #[inline]
@@ -134,33 +141,6 @@ fn is_simple_fan(made: &[Tri]) -> bool {
         turn < full - 1e-6
     } else {
         (turn - full).abs() < 1e-6
-    }
-}
-
-/// A box in `f32`, rounded outward.
-#[derive(Clone, Copy, Debug)]
-struct Box32 {
-    lo: [f32; 3],
-    hi: [f32; 3],
-}
-
-impl Box32 {
-    #[inline]
-    fn outward((lo, hi): (DVec3, DVec3)) -> Self {
-        Box32 {
-            lo: [f32_down(lo.x), f32_down(lo.y), f32_down(lo.z)],
-            hi: [f32_up(hi.x), f32_up(hi.y), f32_up(hi.z)],
-        }
-    }
-
-    #[inline]
-    fn overlaps(&self, o: &Box32) -> bool {
-        (self.lo[0] <= o.hi[0])
-            & (o.lo[0] <= self.hi[0])
-            & (self.lo[1] <= o.hi[1])
-            & (o.lo[1] <= self.hi[1])
-            & (self.lo[2] <= o.hi[2])
-            & (o.lo[2] <= self.hi[2])
     }
 }
 
@@ -318,7 +298,7 @@ impl Guard {
         self.prev.push(NONE);
         self.level_of.push(0);
         self.cell_of.push(NONE);
-        self.boxes.push(Box32::outward(t.bounds()));
+        self.boxes.push(t.box32());
         self.tris.push(t);
         self.seen.push(0);
         self.link(e, t);
@@ -351,7 +331,7 @@ impl Guard {
         }
         self.level_of[e as usize] = level as u8;
         self.cell_of[e as usize] = c;
-        self.boxes[e as usize] = Box32::outward(b);
+        self.boxes[e as usize] = Box32::outward(b.0, b.1);
         self.tris[e as usize] = t;
     }
 
@@ -446,7 +426,7 @@ impl Guard {
         }
         let mut made_boxes = std::mem::take(&mut self.made_boxes);
         made_boxes.clear();
-        made_boxes.extend(made.iter().map(|t| Box32::outward(t.bounds())));
+        made_boxes.extend(made.iter().map(|t| t.box32()));
         let clear = self.scan(made, &made_boxes, lo, hi, q);
         self.made_boxes = made_boxes;
         clear
@@ -455,7 +435,7 @@ impl Guard {
     /// The cells near [lo, hi]: whether no entry not seen by query `q`
     /// crosses a triangle of `made`.
     fn scan(&self, made: &[Tri], made_boxes: &[Box32], lo: DVec3, hi: DVec3, q: u32) -> bool {
-        let query_box = Box32::outward((lo, hi));
+        let query_box = Box32::outward(lo, hi);
         for l in &self.levels {
             if l.count == 0 {
                 continue;
