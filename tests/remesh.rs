@@ -73,6 +73,14 @@ fn assert_valid_but_intersections(name: &str, mesh: &InterfaceMesh) -> u64 {
         .map_or(0, |c| c.failures)
 }
 
+/// Every invariant including no self-intersections, junction curves shared,
+/// and at most 1 % of the surface left as extracted.
+fn assert_remeshed_cleanly(name: &str, out: &Remeshed) {
+    assert_eq!(assert_valid_but_intersections(name, &out.mesh), 0, "{name}");
+    assert_junctions_shared(&out.mesh);
+    assert!(stuck(out) <= 0.01, "{name}: {} kept", out.kept_share);
+}
+
 /// Junction vertices are shared: every junction curve vertex of the remeshed
 /// mesh is used by a triangle of every patch whose labels meet there (at
 /// least two patches).
@@ -414,13 +422,7 @@ fn fold_with_banks_one_voxel_apart() {
     for target_edge in [2.0, 3.0] {
         let (mesh, out) = remeshed(&vol, &r, target_edge);
         let name = format!("fold, L = {target_edge}");
-        assert_eq!(
-            assert_valid_but_intersections(&name, &out.mesh),
-            0,
-            "{name}"
-        );
-        assert_junctions_shared(&out.mesh);
-        assert!(stuck(&out) <= 0.01, "{name}: {} kept", out.kept_share);
+        assert_remeshed_cleanly(&name, &out);
         let q = quality(&out.mesh, Some(&mesh), &QualityOptions::target(target_edge));
         for l in &q.labels {
             if let Some(c) = l.change {
@@ -468,13 +470,7 @@ fn two_parallel_one_voxel_walls() {
     for target_edge in [2.0, 4.0] {
         let (mesh, out) = remeshed(&vol, &r, target_edge);
         let name = format!("walls, L = {target_edge}");
-        assert_eq!(
-            assert_valid_but_intersections(&name, &out.mesh),
-            0,
-            "{name}"
-        );
-        assert_junctions_shared(&out.mesh);
-        assert!(stuck(&out) <= 0.01, "{name}: {} kept", out.kept_share);
+        assert_remeshed_cleanly(&name, &out);
         let q = quality(&out.mesh, Some(&mesh), &QualityOptions::target(target_edge));
         for value in [2, 3] {
             let l = q.labels.iter().find(|l| l.value == value).unwrap();
