@@ -141,12 +141,24 @@ pub fn extract(
                 .into_par_iter()
                 .map(|b| vesta::coarse_slab(&ctx, b * slab, ((b + 1) * slab).min(planes)))
                 .collect();
+            let coarse_tris: usize = parts.iter().map(|p| p.tris.len()).sum();
+            let coarse_chords: usize = parts.iter().map(|p| p.chords.len()).sum();
             parts.extend(
                 rv.refined_cells()
                     .par_chunks(32)
                     .map(|cells| vesta::refined_cells(&ctx, cells))
                     .collect::<Vec<_>>(),
             );
+            if std::env::var_os("SEPTA_DEBUG_EXTRACT").is_some() {
+                let all: usize = parts.iter().map(|p| p.tris.len()).sum();
+                let ch: usize = parts.iter().map(|p| p.chords.len()).sum();
+                eprintln!(
+                    "extract: coarse {coarse_tris} tris {coarse_chords} chords; refined {} tris {} chords; {} refined voxels",
+                    all - coarse_tris,
+                    ch - coarse_chords,
+                    rv.refined_cells().len()
+                );
+            }
             Ok(assemble::assemble(
                 parts,
                 Some(&faces),

@@ -14,7 +14,7 @@
 //!    room, less where label regions are thin), curves first, then
 //!    patches, projecting vertices back onto the reference; every operation
 //!    is checked by a crossing guard against every other triangle, so the
-//!    result crosses itself nowhere either. Space is cut into slabs
+//!    result crosses itself nowhere either. Space is cut into blocks
 //!    remeshed in parallel (see `work.rs`), with the same result for any
 //!    number of threads.
 //!
@@ -62,7 +62,7 @@ use crate::volume::{Geometry, PaddedLabels};
 use halfedge::{HalfedgeMesh, NONE};
 use network::VertexKind;
 pub use sizing::Sizing;
-use work::{Shared, Slabs, Work};
+use work::{Blocks, COLOURS, Shared, Work};
 
 /// Parameters of [`remesh`].
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -265,9 +265,11 @@ const ISLAND_VOXELS: f64 = 27.0;
 /// See [`ISLAND_VOXELS`].
 const ISLAND_TARGETS: f64 = 2.0;
 
-/// Slabs are at least this many times as wide as an operation's reach: the
-/// slabs of one colour are then far enough apart never to meet.
-const SLAB_REACHES: f64 = 3.0;
+/// Blocks are at least this many times as wide as an operation's reach.
+/// Two blocks of one colour are a block width apart; each makes triangles
+/// within one reach of itself and sees (as obstacles) those within one
+/// reach, so more than two reaches keep them from ever meeting.
+const BLOCK_REACHES: f64 = 2.5;
 
 /// The diagonal of the points' bounding box (0 for none).
 fn bbox_diagonal(points: &[DVec3]) -> f64 {
@@ -360,22 +362,29 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
             })
             .reduce(|| 0.0, f64::max);
         // new triangles reach at most an edge beyond their vertices, which lie
-        // at most an edge beyond their slab
+        // at most an edge beyond their block
         let reach = 2.0 * longest.max(sizing.max() * isotropic_split_above());
-        let slabs = Slabs::over(&work, SLAB_REACHES * reach, reach, 0.5 * (it % 2) as f64);
+        let blocks = Blocks::over(&work, BLOCK_REACHES * reach, reach, 0.5 * (it % 2) as f64);
         let t = std::time::Instant::now();
-        work.pass(&slabs, 0, &shared);
-        work.pass(&slabs, 1, &shared);
+        for colour in 0..COLOURS {
+            work.pass(&blocks, colour, &shared);
+        }
         if std::env::var_os("SEPTA_DEBUG_ITER").is_some() {
             eprintln!(
-                "iteration {it}: {:.3} s, {} triangles, {} slabs",
+                "iteration {it}: {:.3} s, {} triangles, {} blocks",
                 t.elapsed().as_secs_f64(),
                 work.tris.len(),
-                slabs.count
+                blocks.len()
             );
         }
     }
     timings.iterations = clock.elapsed().as_secs_f64();
+    if std::env::var_os("SEPTA_DEBUG_ITER").is_some() {
+        eprintln!(
+            "remesh: smooth {:.3} s, setup {:.3} s, iterations {:.3} s",
+            timings.smooth, timings.setup, timings.iterations
+        );
+    }
 
     let out = into_mesh(&work, mesh);
     let area = |t: &[u32; 3]| {

@@ -1,17 +1,20 @@
 //! The working mesh of the remesher and its domain decomposition.
 //!
 //! Between passes the mesh is one vertex pool for all patches ([`Work`]).
-//! A pass cuts space into slabs along the mesh's longest axis; every
-//! triangle belongs to the slab holding its centroid. Slabs of one colour
-//! (every other slab) are remeshed in parallel, each by its own
+//! A pass cuts space into columns ([`Blocks`]) over a grid in the plane of
+//! the mesh's two longest axes; every triangle belongs to the block holding
+//! its centroid. Blocks of one colour (same parity of both grid indices:
+//! four colours) are remeshed in parallel, largest first, each by its own
 //! [`Remesher`] over its triangles, with the vertices it shares with other
-//! slabs locked and the triangles of the neighbouring slabs beside it as
-//! fixed obstacles of its crossing guard. Slabs of one colour are a whole
-//! slab apart, wider than anything an operation can reach, so no two of them
-//! touch the same triangle or see each other's; the result does not depend
-//! on the number of threads. The other colour follows, then the next
-//! iteration with the slab borders moved by half a slab, so that no seam
-//! stays locked.
+//! blocks locked and the triangles of the neighbouring blocks beside it as
+//! fixed obstacles of its crossing guard. Blocks of one colour are a whole
+//! block apart along at least one axis, wider than anything an operation can
+//! reach, so no two of them touch the same triangle or see each other's; the
+//! result does not depend on the number of threads. The other colours
+//! follow, then the next iteration with the block borders moved by half a
+//! block, so that no seam stays locked. (Slabs along one axis, the earlier
+//! design, left two or three busy slabs per colour on real heads: one
+//! thread idle half the time.)
 
 use glam::DVec3;
 use hashbrown::HashMap;
@@ -47,53 +50,112 @@ pub(super) struct Shared<'r> {
     pub(super) eps: f64,
 }
 
-/// The slabs of one pass: borders at `origin + k · width` along `axis`.
+/// The blocks of one pass: columns over a grid in the plane of the mesh's
+/// two longest axes (borders at `origin[k] + i · width[k]` along `axes[k]`),
+/// each spanning the third axis whole. Block `(i, j)` is number `i + count[0]
+/// · j` and has colour `i % 2 + 2 · (j % 2)`: two blocks of one colour are a
+/// whole block apart along at least one axis.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Slabs {
-    pub(super) axis: usize,
-    pub(super) origin: f64,
-    pub(super) width: f64,
-    pub(super) count: usize,
-    /// How far beyond its slab an operation may make triangles (mm).
+pub(super) struct Blocks {
+    pub(super) axes: [usize; 2],
+    pub(super) origin: [f64; 2],
+    pub(super) width: [f64; 2],
+    pub(super) count: [usize; 2],
+    /// How far beyond its block an operation may make triangles (mm).
     pub(super) reach: f64,
 }
 
-impl Slabs {
-    /// Slabs over `work`'s extent at least `min_width` wide (and about 16 in
-    /// all), shifted by `shift` slab widths.
-    pub(super) fn over(work: &Work, min_width: f64, reach: f64, shift: f64) -> Slabs {
+/// Colours of [`Blocks`]: blocks of one colour are remeshed at the same time.
+pub(super) const COLOURS: usize = 4;
+
+impl Blocks {
+    /// Blocks over `work`'s extent at least `min_width` wide (and at most
+    /// about 6 per axis: enough to keep two threads busy, few enough to leave
+    /// little of the surface on block borders), shifted by `shift` block widths.
+    pub(super) fn over(work: &Work, min_width: f64, reach: f64, shift: f64) -> Blocks {
         let (lo, hi) = work.pos.iter().fold(
             (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
             |(lo, hi), p| (lo.min(*p), hi.max(*p)),
         );
         let ext = (hi - lo).max(DVec3::ZERO);
-        let axis = if ext.x >= ext.y && ext.x >= ext.z {
-            0
-        } else if ext.y >= ext.z {
-            1
-        } else {
-            2
-        };
-        let width = (ext[axis] / 16.0).max(min_width).max(1e-9);
-        let origin = lo[axis] - width * shift.fract();
-        let count = ((hi[axis] - origin) / width).floor() as usize + 1;
-        Slabs {
-            axis,
+        let mut order = [0, 1, 2];
+        order.sort_by(|&a, &b| ext[b].total_cmp(&ext[a]));
+        let axes = [order[0], order[1]];
+        let width = axes.map(|a| (ext[a] / 6.0).max(min_width).max(1e-9));
+        let origin = [0, 1].map(|k| lo[axes[k]] - width[k] * shift.fract());
+        let count =
+            [0, 1].map(|k| (((hi[axes[k]] - origin[k]) / width[k]).floor() as usize + 1).max(1));
+        Blocks {
+            axes,
             origin,
             width,
-            count: count.max(1),
+            count,
             reach,
         }
     }
 
+    /// How many blocks there are.
+    pub(super) fn len(&self) -> usize {
+        self.count[0] * self.count[1]
+    }
+
+    /// Index along grid axis `k` of the block holding coordinate `x`.
     #[inline]
-    fn of(&self, x: f64) -> usize {
-        let k = ((x - self.origin) / self.width).floor();
-        if k.is_nan() || k < 0.0 {
+    fn index_along(&self, k: usize, x: f64) -> usize {
+        let i = ((x - self.origin[k]) / self.width[k]).floor();
+        if i.is_nan() || i < 0.0 {
             0
         } else {
-            (k as usize).min(self.count - 1)
+            (i as usize).min(self.count[k] - 1)
         }
+    }
+
+    /// The block holding point `p`.
+    #[inline]
+    fn of(&self, p: DVec3) -> usize {
+        let i = self.index_along(0, p[self.axes[0]]);
+        let j = self.index_along(1, p[self.axes[1]]);
+        i + self.count[0] * j
+    }
+
+    /// Grid coordinates of block `b`.
+    #[inline]
+    fn coords(&self, b: usize) -> [usize; 2] {
+        [b % self.count[0], b / self.count[0]]
+    }
+
+    fn colour(&self, b: usize) -> usize {
+        let [i, j] = self.coords(b);
+        i % 2 + 2 * (j % 2)
+    }
+
+    /// The blocks next to block `b` (sharing a side or a corner).
+    fn neighbours(&self, b: usize) -> impl Iterator<Item = usize> + '_ {
+        let [i, j] = self.coords(b);
+        (-1i64..=1)
+            .flat_map(move |dj| (-1i64..=1).map(move |di| (di, dj)))
+            .filter(|&d| d != (0, 0))
+            .filter_map(move |(di, dj)| {
+                let (ni, nj) = (i as i64 + di, j as i64 + dj);
+                (ni >= 0
+                    && nj >= 0
+                    && (ni as usize) < self.count[0]
+                    && (nj as usize) < self.count[1])
+                    .then(|| ni as usize + self.count[0] * nj as usize)
+            })
+    }
+
+    /// The box in which block `b`'s operations may make triangles: the block
+    /// grown by the reach (unbounded along the third axis).
+    fn trusted(&self, b: usize) -> (DVec3, DVec3) {
+        let c = self.coords(b);
+        let mut lo = DVec3::splat(f64::NEG_INFINITY);
+        let mut hi = DVec3::splat(f64::INFINITY);
+        for k in 0..2 {
+            lo[self.axes[k]] = self.origin[k] + c[k] as f64 * self.width[k] - self.reach;
+            hi[self.axes[k]] = self.origin[k] + (c[k] + 1) as f64 * self.width[k] + self.reach;
+        }
+        (lo, hi)
     }
 }
 
@@ -103,7 +165,9 @@ struct Outcome {
     stats: [u64; 10],
     moved: Vec<(u32, DVec3)>,
     dead: Vec<u32>,
-    made: Vec<(DVec3, VertexKind)>,
+    /// Vertices made here: position, kind, and whether still in use (a
+    /// vertex made by a split may be collapsed away in the same pass).
+    made: Vec<(DVec3, VertexKind, bool)>,
     triangles: Vec<([u32; 3], u32, u32, bool)>,
     /// Per curve run: its curve and what became of it.
     runs: Vec<(u32, RunResult)>,
@@ -135,20 +199,21 @@ struct RunResult {
 }
 
 impl Work {
-    /// One remeshing iteration of every slab of colour `colour` (0 or 1).
-    pub(super) fn pass(&mut self, slabs: &Slabs, colour: usize, shared: &Shared) {
+    /// One remeshing iteration of every block of colour `colour` (below
+    /// [`COLOURS`]).
+    pub(super) fn pass(&mut self, blocks: &Blocks, colour: usize, shared: &Shared) {
+        let t_pass = std::time::Instant::now();
         let slab_of: Vec<u32> = self
             .tris
             .par_iter()
             .map(|t| {
-                let c = (self.pos[t[0] as usize][slabs.axis]
-                    + self.pos[t[1] as usize][slabs.axis]
-                    + self.pos[t[2] as usize][slabs.axis])
-                    / 3.0;
-                slabs.of(c) as u32
+                let c =
+                    (self.pos[t[0] as usize] + self.pos[t[1] as usize] + self.pos[t[2] as usize])
+                        / 3.0;
+                blocks.of(c) as u32
             })
             .collect();
-        let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); slabs.count];
+        let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); blocks.len()];
         for (t, &s) in slab_of.iter().enumerate() {
             buckets[s as usize].push(t as u32);
         }
@@ -158,11 +223,17 @@ impl Work {
                 uses[v as usize] += 1;
             }
         }
-        let todo: Vec<usize> = (0..slabs.count).filter(|s| s % 2 == colour).collect();
+        // largest blocks first, one per task: the threads stay busy
+        let mut todo: Vec<usize> = (0..blocks.len())
+            .filter(|&b| blocks.colour(b) == colour && !buckets[b].is_empty())
+            .collect();
+        todo.sort_by_key(|&b| std::cmp::Reverse(buckets[b].len()));
         let closed = self.closed_components(&todo, &buckets);
+        let t_pre = t_pass.elapsed();
         let outcomes: Vec<Outcome> = todo
             .par_iter()
-            .map(|&s| self.remesh_slab(slabs, s, &buckets, &uses, &closed, shared))
+            .with_max_len(1)
+            .map(|&b| self.remesh_block(blocks, b, &buckets, &uses, &closed, shared))
             .collect();
         if std::env::var_os("SEPTA_DEBUG_ITER").is_some() {
             let mut t = [0u64; 10];
@@ -171,6 +242,20 @@ impl Work {
                     t[k] += o.stats[k];
                 }
             }
+            let per: Vec<String> = todo
+                .iter()
+                .zip(&outcomes)
+                .map(|(&s, o)| {
+                    format!(
+                        "{}:{}k/{}ms",
+                        s,
+                        buckets[s].len() / 1000,
+                        o.stats[9] / 1_000_000
+                    )
+                })
+                .collect();
+            eprintln!("  slabs {}", per.join(" "));
+            eprintln!("  pre {:?}, blocks {:?}", t_pre, t_pass.elapsed() - t_pre);
             eprintln!(
                 "  colour {colour}: {} guard queries ({:.1} made each, {:.1} µs each, {} refused); ms: curves {}, split {}, collapse {}, flip {}, relax {}, slab total {}",
                 t[0],
@@ -185,10 +270,14 @@ impl Work {
                 t[9] / 1_000_000
             );
         }
+        let t_m = std::time::Instant::now();
         self.merge(&todo, &slab_of, outcomes);
+        if std::env::var_os("SEPTA_DEBUG_ITER").is_some() {
+            eprintln!("  merge {:?}", t_m.elapsed());
+        }
         if std::env::var_os("SEPTA_DEBUG_WORK").is_some() {
             if let Err(e) = self.check() {
-                panic!("after pass colour {colour} over {slabs:?}: {e}");
+                panic!("after pass colour {colour} over {blocks:?}: {e}");
             }
         }
     }
@@ -250,6 +339,15 @@ impl Work {
 
     /// Every patch a manifold: each directed edge once per patch.
     pub(super) fn check(&self) -> Result<(), String> {
+        let mut used = vec![false; self.pos.len()];
+        for t in &self.tris {
+            for &v in t {
+                used[v as usize] = true;
+            }
+        }
+        if let Some(v) = used.iter().position(|&u| !u) {
+            return Err(format!("vertex {v} ({:?}) unused", self.kind[v]));
+        }
         let mut seen: HashMap<(u32, u32, u32), usize> = HashMap::new();
         for (t, tri) in self.tris.iter().enumerate() {
             for k in 0..3 {
@@ -265,9 +363,9 @@ impl Work {
         Ok(())
     }
 
-    fn remesh_slab(
+    fn remesh_block(
         &self,
-        slabs: &Slabs,
+        blocks: &Blocks,
         s: usize,
         buckets: &[Vec<u32>],
         uses: &[u32],
@@ -286,13 +384,7 @@ impl Work {
         if own.is_empty() {
             return empty;
         }
-        let axis = slabs.axis;
-        let x0 = slabs.origin + s as f64 * slabs.width - slabs.reach;
-        let x1 = slabs.origin + (s + 1) as f64 * slabs.width + slabs.reach;
-        let mut lo = DVec3::splat(f64::NEG_INFINITY);
-        let mut hi = DVec3::splat(f64::INFINITY);
-        lo[axis] = x0;
-        hi[axis] = x1;
+        let (lo, hi) = blocks.trusted(s);
 
         // local vertices: those of the slab's triangles first
         let mut local: HashMap<u32, u32> = HashMap::with_capacity(own.len());
@@ -320,15 +412,12 @@ impl Work {
             .collect();
         // obstacles: the neighbouring slabs' triangles that reach the trusted box
         let mut obstacles = Vec::new();
-        for nb in [s.wrapping_sub(1), s + 1] {
-            let Some(list) = buckets.get(nb) else {
-                continue;
-            };
-            for &t in list {
+        for nb in blocks.neighbours(s) {
+            for &t in &buckets[nb] {
                 let tri = self.tris[t as usize];
-                let xs = tri.map(|v| self.pos[v as usize][axis]);
-                let (tlo, thi) = (xs[0].min(xs[1]).min(xs[2]), xs[0].max(xs[1]).max(xs[2]));
-                if thi >= x0 && tlo <= x1 {
+                let [a, b, c] = tri.map(|v| self.pos[v as usize]);
+                let (tlo, thi) = (a.min(b).min(c), a.max(b).max(c));
+                if thi.cmpge(lo).all() && tlo.cmple(hi).all() {
                     obstacles.push(tri.map(|v| local_of(v, &mut global, &mut count)));
                 }
             }
@@ -517,7 +606,8 @@ impl Work {
             }
         }
         for l in n_region..result.pos.len() {
-            out.made.push((result.pos[l], result.kind[l]));
+            out.made
+                .push((result.pos[l], result.kind[l], result.alive[l]));
         }
         for t in &result.triangles {
             out.triangles.push((
@@ -573,10 +663,10 @@ impl Work {
             for v in o.dead {
                 alive[v as usize] = false;
             }
-            for (p, k) in o.made {
+            for (p, k, a) in o.made {
                 self.pos.push(p);
                 self.kind.push(k);
-                alive.push(true);
+                alive.push(a);
             }
             let g = |v: u32| if v >= NEW { base + (v - NEW) } else { v };
             for (t, p, h, k) in o.triangles {
