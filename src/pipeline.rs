@@ -240,6 +240,7 @@ pub fn run(
                 steps: out.timings,
                 kept_share: out.kept_share,
                 kept_islands_share: out.island_share,
+                kept_vertices: out.kept_vertices,
             });
             out.mesh
         }
@@ -292,6 +293,7 @@ struct Remeshed {
     steps: crate::remesh::RemeshTimings,
     kept_share: f64,
     kept_islands_share: f64,
+    kept_vertices: usize,
 }
 
 /// A running stage: reported as started, timed, reported as finished.
@@ -540,6 +542,7 @@ fn manifest(p: ManifestParts<'_>) -> Manifest {
         quality: p.remeshed.map(|r| r.quality.clone()),
         remesh_steps_s: p.remeshed.map(|r| r.steps),
         remesh_kept_share: p.remeshed.map(|r| r.kept_share),
+        remesh_kept_vertices: p.remeshed.map(|r| r.kept_vertices as u64),
         remesh_kept_islands_share: p.remeshed.map(|r| r.kept_islands_share),
         validation: ManifestValidation {
             passed: p.report.passed(),

@@ -161,6 +161,8 @@ pub struct Manifest {
     pub remesh_steps_s: Option<RemeshTimings>,
     /// Share of the surface (by area) the remesher left as extracted.
     pub remesh_kept_share: Option<f64>,
+    /// Output vertices all of whose triangles stayed as extracted.
+    pub remesh_kept_vertices: Option<u64>,
     /// Part of that share in small islands, kept by design.
     pub remesh_kept_islands_share: Option<f64>,
     pub validation: ManifestValidation,

@@ -239,6 +239,8 @@ pub struct Remeshed {
     pub kept_share: f64,
     /// The part of [`Remeshed::kept_share`] that is on small islands.
     pub island_share: f64,
+    /// Output vertices all of whose triangles stayed as extracted.
+    pub kept_vertices: usize,
     /// Wall time of each step.
     pub timings: RemeshTimings,
 }
@@ -406,6 +408,15 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
         })
         .reduce(|| (0.0, 0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1, x.2 + y.2));
     let share = |x: f64| if total > 0.0 { x / total } else { 0.0 };
+    // per vertex: 1 while every triangle seen at it was kept, 2 once one was not
+    let mut state = vec![0u8; work.pos.len()];
+    for (t, &k) in work.tris.iter().zip(&work.kept) {
+        for &v in t {
+            let s = &mut state[v as usize];
+            *s = (*s).max(if k { 1 } else { 2 });
+        }
+    }
+    let kept_vertices = state.iter().filter(|&&s| s == 1).count();
     let smoothed = InterfaceMesh {
         positions: smoothed_pos,
         ..mesh.clone()
@@ -415,6 +426,7 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
         smoothed,
         kept_share: share(kept),
         island_share: share(islands),
+        kept_vertices,
         timings,
     })
 }
@@ -536,5 +548,6 @@ mod tests {
         assert_eq!(out.mesh.triangles, mesh.triangles);
         assert_eq!(out.mesh.positions, out.smoothed.positions);
         assert_eq!(out.kept_share, 1.0);
+        assert_eq!(out.kept_vertices, out.mesh.vertex_count());
     }
 }
