@@ -17,6 +17,11 @@ use glam::DVec3;
 
 use crate::volume::{Geometry, LabelId};
 
+/// A point for messages: `(x, y, z)` with three decimals (mm: a micrometre).
+pub fn fmt_point(p: DVec3) -> String {
+    format!("({:.3}, {:.3}, {:.3})", p.x, p.y, p.z)
+}
+
 /// One interface patch: the triangles between labels `labels[0] < labels[1]`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Patch {
