@@ -324,7 +324,7 @@ def extract(
     intersections: bool = False,
     max_memory: Optional[int] = None,
     progress: Optional[ProgressCallback] = None,
-    labels: Optional[Sequence[Union[int, str]]] = None,
+    select: Optional[Sequence[Union[int, str]]] = None,
     others: Union[None, int, str] = None,
     label_names: Union[None, PathLike, Mapping[int, str]] = None,
 ) -> Interfaces:
@@ -346,10 +346,10 @@ def extract(
             (DICOM, ITK, 3D Slicer).
         progress: called as ``progress(event, stage, message)`` with event
             ``"started"``, ``"finished"`` or ``"warning"``.
-        labels: mesh only these labels (values or names); every other label is
+        select: mesh only these labels (values or names); every other label is
             merged into the outside label, or into ``others`` (as ``--labels`` and
-            ``--others``).
-        others: with ``labels``: the label the others become (value or name).
+            ``--others`` of the command line; ``labels`` is the volume here).
+        others: with ``select``: the label the others become (value or name).
         label_names: names of labels, as a dict ``{1: "grey matter"}`` or a file
             (JSON, TOML, 3D Slicer colour table, ITK-SNAP label description; as
             ``--label-names``); they win over the config's ``[labels]``.
@@ -385,10 +385,10 @@ def extract(
         if len(s) != 3:
             raise ParameterError(f"spacing: expected 3 numbers, got {len(s)}")
         affine_lps = _septa.spacing_affine_lps(s, [0.0, 0.0, 0.0])
-    if others is not None and labels is None:
-        raise ParameterError("others: give labels too (others says what the unselected labels become)")
-    if isinstance(labels, (str, int, np.integer)):
-        labels = [labels]
+    if others is not None and select is None:
+        raise ParameterError("others: give select too (others says what the unselected labels become)")
+    if isinstance(select, (str, int, np.integer)):
+        select = [select]
     names_args: Dict[str, Any] = {}
     if isinstance(label_names, Mapping):
         names_args["label_names"] = [(int(k), str(v)) for k, v in label_names.items()]
@@ -397,7 +397,7 @@ def extract(
     native = _septa.extract(
         volume,
         affine_lps,
-        labels=None if labels is None else [str(_label_ref(x)) for x in labels],
+        labels=None if select is None else [str(_label_ref(x)) for x in select],
         others=None if others is None else str(_label_ref(others)),
         **names_args,
         remesh=remesh,
@@ -424,12 +424,12 @@ def extract(
 
 def _label_ref(x: Union[int, str, np.integer]) -> Union[int, str]:
     if isinstance(x, (bool, np.bool_)):
-        raise ParameterError(f"labels: {x!r} is not a label value or name")
+        raise ParameterError(f"select: {x!r} is not a label value or name")
     if isinstance(x, (int, np.integer)):
         return int(x)
     if isinstance(x, str):
         return x
-    raise ParameterError(f"labels: {x!r} is not a label value or name")
+    raise ParameterError(f"select: {x!r} is not a label value or name")
 
 
 @dataclass(frozen=True)
