@@ -392,6 +392,9 @@ fn itk_snap_line(l: &str) -> std::result::Result<(i64, String), String> {
         ));
     }
     let name = rest[..close].to_string();
+    if name.trim().is_empty() {
+        return Err("the label name is empty".into());
+    }
     let fields: Vec<&str> = l[..open].split_whitespace().collect();
     if fields.len() != 7 {
         return Err(format!(
