@@ -28,6 +28,7 @@ pub mod geom;
 pub mod hyper;
 pub mod io;
 pub mod iso;
+pub mod labels;
 pub mod mesh;
 pub mod output;
 pub mod phantom;

@@ -13,8 +13,8 @@
 //! - `junctions.vtp` — the same as VTK polylines, one per curve;
 //! - `manifest.json` — input, parameters, labels, patches, junctions, timings
 //!   and the validator's result;
-//! - optionally `interfaces.obj` and `labels/<name>.stl` (the closed outward
-//!   surface of each label, for printing).
+//! - optionally `interfaces.obj` and `labels/<name>.{stl,obj,ply,vtp}` (the
+//!   closed outward surface of each label; see [`crate::io::label_files`]).
 //!
 //! Everything is written into a temporary directory beside `OUTDIR` and renamed
 //! into place at the end, so an interrupted run leaves no half-written output.
@@ -26,9 +26,7 @@ use std::path::{Path, PathBuf};
 use crate::error::{Error, Result};
 use crate::io::Space;
 use crate::io::manifest::Manifest;
-use crate::io::mesh_formats::{
-    VtpEncoding, write_junctions_vtp, write_obj_in, write_stl_label_surface_in, write_vtp_in,
-};
+use crate::io::mesh_formats::{VtpEncoding, write_junctions_vtp, write_obj_in, write_vtp_in};
 use crate::io::mesh_ply::{write_junctions_ply_in, write_patch_plys_in, write_ply_in};
 use crate::io::temp;
 use crate::mesh::InterfaceMesh;
@@ -38,8 +36,9 @@ use crate::mesh::InterfaceMesh;
 pub struct Formats {
     /// `interfaces.obj`: all patches, one group each.
     pub obj: bool,
-    /// `labels/<name>.stl`: the closed outward surface of each label.
-    pub stl: bool,
+    /// `labels/<name>.<ext>`: the closed outward surface of each label, in
+    /// each of these formats.
+    pub per_label: crate::io::label_files::LabelFormats,
 }
 
 /// Longest name of a label in file names (bytes): with the other label's and
@@ -519,15 +518,12 @@ fn write_files(
         files.push("interfaces.obj".into());
     }
 
-    if formats.stl {
-        std::fs::create_dir_all(dir.join("labels")).map_err(|e| Error::io(dir, e))?;
-        let names = label_file_names(mesh);
-        for l in mesh.labels_with_patches() {
-            let rel = PathBuf::from("labels").join(format!("{}.stl", names[l as usize]));
-            write_stl_label_surface_in(&dir.join(&rel), mesh, l, space)?;
-            files.push(rel);
-        }
-    }
+    files.extend(crate::io::label_files::write_label_surfaces_in(
+        dir,
+        mesh,
+        formats.per_label,
+        space,
+    )?);
     files.push("manifest.json".into());
     manifest.files = files.iter().map(|f| rel_string(f)).collect();
     manifest.write(&dir.join("manifest.json"))?;

@@ -40,9 +40,11 @@ use crate::error::{Error, Result};
 use crate::estimate::{Work, human_bytes};
 use crate::extract::{Decompose, ExtractOptions, Surface, extract, label_infos};
 use crate::io::manifest::{
-    Manifest, ManifestInput, ManifestJunction, ManifestLabel, ManifestParameters, ManifestPatch,
-    ManifestPreprocessing, ManifestSeparation, ManifestValidation, MeshSize,
+    Manifest, ManifestInput, ManifestJunction, ManifestLabel, ManifestLabelSelection,
+    ManifestParameters, ManifestPatch, ManifestPreprocessing, ManifestSeparation,
+    ManifestValidation, MeshSize,
 };
+use crate::labels::{LabelSelection, Selected};
 use crate::mesh::InterfaceMesh;
 use crate::mesh::quality::{QualityOptions, QualityReport, quality};
 use crate::mesh::stats::patch_stats;
@@ -73,6 +75,10 @@ pub struct PipelineOptions {
     pub max_memory: Option<u64>,
     /// The file the volume was read from: named in messages and the manifest.
     pub source_file: Option<PathBuf>,
+    /// Mesh only these labels: every other label is merged into the outside
+    /// label (or the selection's `others`) before anything else, as if the
+    /// volume had only these (see [`LabelSelection::apply`]).
+    pub labels: Option<LabelSelection>,
 }
 
 /// A stage of the pipeline.
@@ -146,6 +152,26 @@ pub fn run(
         progress(Progress::Warning(&text));
         warnings.push(text);
     };
+    // the selection first: what follows sees only the chosen labels
+    let selected;
+    let (volume, config) = match &options.labels {
+        Some(selection) => {
+            let (volume, s) = selection.apply(volume, config, ("labels", "others"))?;
+            // the outside label stays the one of the whole volume, even where
+            // merging changed which label is most frequent on the border
+            let mut c = config.clone();
+            if c.outside.is_none() {
+                c.outside = Some(crate::config::LabelRef::Value(s.outside));
+            }
+            selected = Some(s);
+            (volume, std::borrow::Cow::Owned(c))
+        }
+        None => {
+            selected = None;
+            (volume, std::borrow::Cow::Borrowed(config))
+        }
+    };
+    let config: &Config = &config;
     let (volume, resolved) = config.resolve(volume)?;
     for w in &resolved.warnings {
         warn(w.clone(), progress);
@@ -275,6 +301,7 @@ pub fn run(
         remeshed: remeshed.as_ref(),
         report: &report,
         timings: &timings,
+        selected: selected.as_ref(),
     });
     Ok(PipelineResult {
         mesh,
@@ -450,6 +477,7 @@ struct ManifestParts<'a> {
     remeshed: Option<&'a Remeshed>,
     report: &'a Report,
     timings: &'a [(Stage, Duration)],
+    selected: Option<&'a Selected>,
 }
 
 fn manifest(p: ManifestParts<'_>) -> Manifest {
@@ -496,6 +524,11 @@ fn manifest(p: ManifestParts<'_>) -> Manifest {
                     by: s.by.to_string(),
                 })
                 .collect(),
+            label_selection: p.selected.map(|s| ManifestLabelSelection {
+                kept: s.kept.clone(),
+                merged: s.merged.clone(),
+                into: s.target,
+            }),
         },
         labels: (0..v.label_count())
             .map(|i| ManifestLabel {

@@ -44,6 +44,10 @@ __all__ = [
     "Surface",
     "read_volume",
     "extract",
+    "iso",
+    "hyper",
+    "Hypersurface",
+    "CheckReport",
     "check",
     "SeptaError",
     "InputError",
@@ -223,12 +227,17 @@ class Interfaces:
         directory: PathLike,
         force: bool = False,
         formats: Sequence[str] = (),
+        per_label: Sequence[str] = (),
     ) -> List[str]:
         """Writes the output directory as ``septa extract`` does (``interfaces.ply``,
         ``interfaces.vtp``, ``patches/``, ``junctions.ply``, ``junctions.vtp``,
         ``manifest.json``; ``formats`` adds ``"obj"`` and ``"stl"``), in :attr:`space`
-        (the files' headers and the manifest say which).
+        (the files' headers and the manifest say which). ``per_label`` (any of
+        ``"stl"``, ``"obj"``, ``"ply"``, ``"vtp"``) writes each label's closed
+        outward surface as ``labels/<name>.<ext>``, as ``--per-label`` does.
         ``force`` replaces a directory septa wrote before. Returns the files written."""
+        if isinstance(formats, str) or isinstance(per_label, str):
+            raise ParameterError("formats and per_label are lists, e.g. ['stl', 'ply']")
         unknown = set(formats) - {"obj", "stl", "vtp"}
         if unknown:
             raise ParameterError(f"formats: unknown {sorted(unknown)} (use obj, stl)")
@@ -239,6 +248,7 @@ class Interfaces:
                 obj="obj" in formats,
                 stl="stl" in formats,
                 space=self.space,
+                per_label=list(per_label),
             )
         )
 
@@ -314,6 +324,9 @@ def extract(
     intersections: bool = False,
     max_memory: Optional[int] = None,
     progress: Optional[ProgressCallback] = None,
+    select: Optional[Sequence[Union[int, str]]] = None,
+    others: Union[None, int, str] = None,
+    label_names: Union[None, PathLike, Mapping[int, str]] = None,
 ) -> Interfaces:
     """Extracts the interface mesh between all labels of ``labels``.
 
@@ -333,6 +346,13 @@ def extract(
             (DICOM, ITK, 3D Slicer).
         progress: called as ``progress(event, stage, message)`` with event
             ``"started"``, ``"finished"`` or ``"warning"``.
+        select: mesh only these labels (values or names); every other label is
+            merged into the outside label, or into ``others`` (as ``--labels`` and
+            ``--others`` of the command line; ``labels`` is the volume here).
+        others: with ``select``: the label the others become (value or name).
+        label_names: names of labels, as a dict ``{1: "grey matter"}`` or a file
+            (JSON, TOML, 3D Slicer colour table, ITK-SNAP label description; as
+            ``--label-names``); they win over the config's ``[labels]``.
 
     Raises:
         ParameterError, ConfigError, InputError: septa's message says what to change.
@@ -365,9 +385,21 @@ def extract(
         if len(s) != 3:
             raise ParameterError(f"spacing: expected 3 numbers, got {len(s)}")
         affine_lps = _septa.spacing_affine_lps(s, [0.0, 0.0, 0.0])
+    if others is not None and select is None:
+        raise ParameterError("others: give select too (others says what the unselected labels become)")
+    if isinstance(select, (str, int, np.integer)):
+        select = [select]
+    names_args: Dict[str, Any] = {}
+    if isinstance(label_names, Mapping):
+        names_args["label_names"] = [(int(k), str(v)) for k, v in label_names.items()]
+    elif label_names is not None:
+        names_args["label_names_path"] = os.fspath(label_names)
     native = _septa.extract(
         volume,
         affine_lps,
+        labels=None if select is None else [str(_label_ref(x)) for x in select],
+        others=None if others is None else str(_label_ref(others)),
+        **names_args,
         remesh=remesh,
         target_edge=target_edge,
         min_edge=min_edge,
@@ -390,9 +422,19 @@ def extract(
     return mesh
 
 
+def _label_ref(x: Union[int, str, np.integer]) -> Union[int, str]:
+    if isinstance(x, (bool, np.bool_)):
+        raise ParameterError(f"select: {x!r} is not a label value or name")
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    if isinstance(x, str):
+        return x
+    raise ParameterError(f"select: {x!r} is not a label value or name")
+
+
 @dataclass(frozen=True)
 class CheckResult:
-    """The verdict of :func:`check`: ``passed`` and the validator's ``summary``."""
+    """The verdict of :func:`check` on a file: ``passed`` and the validator's ``summary``."""
 
     passed: bool
     summary: str
@@ -401,11 +443,252 @@ class CheckResult:
         return self.passed
 
 
-def check(mesh: Union[PathLike, Interfaces]) -> CheckResult:
-    """Validates a PLY file with ``label_a``/``label_b`` face properties (as septa
-    writes ``interfaces.ply``) against septa's invariants, with the
-    self-intersection test. An :class:`Interfaces` gives its own verdict."""
+@dataclass(frozen=True)
+class CheckReport:
+    """The validator's report on a mesh in memory (what :func:`check` returns for
+    arrays or an :class:`Interfaces`): ``passed``; ``failures``, the number of
+    failing elements; ``failed``, the names of the checks that failed; ``checks``,
+    every check as ``{"name", "failures", "examples"}``; ``labels``, the closed
+    surface of each label (``value``, ``triangles``, ``components``,
+    ``volume_mm3``, ``unbounded``); ``summary``, the text ``septa check`` prints.
+    True when every invariant holds."""
+
+    passed: bool
+    failures: int
+    checks: List[Dict[str, Any]]
+    labels: List[Dict[str, Any]]
+    summary: str
+
+    @property
+    def failed(self) -> List[str]:
+        return [c["name"] for c in self.checks if c["failures"]]
+
+    def __bool__(self) -> bool:
+        return self.passed
+
+    @staticmethod
+    def _from_json(text: str) -> "CheckReport":
+        j = json.loads(text)
+        return CheckReport(
+            passed=bool(j["passed"]),
+            failures=int(j["failures"]),
+            checks=list(j["checks"]),
+            labels=list(j["labels"]),
+            summary=j["summary"],
+        )
+
+
+def check(
+    mesh: Union[PathLike, Interfaces, Surface, np.ndarray],
+    triangles: Optional[np.ndarray] = None,
+    labels: Optional[np.ndarray] = None,
+    *,
+    intersections: bool = True,
+) -> Union[CheckResult, CheckReport]:
+    """Validates a mesh against septa's invariants (with the self-intersection
+    test unless ``intersections=False``).
+
+    - ``check(path)``: a PLY file with ``label_a``/``label_b`` face properties (as
+      septa writes ``interfaces.ply``); returns a :class:`CheckResult`.
+    - ``check(mesh)`` with an :class:`Interfaces` (what :func:`extract` returns) or a
+      :class:`Surface`, or ``check(vertices, triangles, labels=None)`` with arrays
+      ((N, 3) float, (M, 3) int, optionally (M, 2) label values per triangle; without
+      labels the triangles are checked as one closed surface): the mesh in memory,
+      validated again; returns a :class:`CheckReport` with the failures.
+    """
     if isinstance(mesh, Interfaces):
-        return CheckResult(mesh.passed, mesh._native.validation_summary())
-    passed, summary = _septa.check(os.fspath(mesh))
-    return CheckResult(bool(passed), summary)
+        vertices, triangles, labels = mesh.vertices, mesh.triangles, mesh.labels
+        if mesh.space == "ras":
+            vertices = vertices * np.array([-1.0, -1.0, 1.0])
+    elif isinstance(mesh, Surface):
+        vertices, triangles = mesh.vertices, mesh.triangles
+    elif isinstance(mesh, (str, os.PathLike)):
+        if triangles is not None or labels is not None:
+            raise ParameterError("check(path) takes no arrays")
+        passed, summary = _septa.check(os.fspath(mesh))
+        return CheckResult(bool(passed), summary)
+    else:
+        vertices = mesh
+        if triangles is None:
+            raise ParameterError("check(vertices, triangles[, labels]): triangles are missing")
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    t = np.asarray(triangles)
+    if t.dtype.kind not in "iu":
+        raise ParameterError(f"triangles: expected integers, got {t.dtype}")
+    t = np.ascontiguousarray(t, dtype=np.int64)
+    for name, a, cols in (("vertices", v, 3), ("triangles", t, 3)):
+        if a.ndim != 2 or a.shape[1] != cols:
+            raise ParameterError(f"{name}: expected shape (n, {cols}), got {a.shape}")
+    lab = None
+    if labels is not None:
+        lab = np.ascontiguousarray(labels, dtype=np.int64)
+        if lab.shape != (len(t), 2):
+            raise ParameterError(f"labels: expected shape ({len(t)}, 2), got {lab.shape}")
+    return CheckReport._from_json(_septa.check_arrays(v, t, lab, intersections=intersections))
+
+
+def _geometry(
+    affine: Optional[np.ndarray], spacing: Optional[Sequence[float]], affine_space: str
+) -> List[List[float]]:
+    """The 3×4 index → LPS affine from an affine (RAS or LPS) or a spacing."""
+    if affine is not None and spacing is not None:
+        raise ParameterError("give affine or spacing, not both")
+    if affine is not None:
+        a = np.asarray(affine, dtype=np.float64)
+        if a.shape not in ((4, 4), (3, 4)):
+            raise ParameterError(f"affine: expected a 4×4 or 3×4 matrix, got shape {a.shape}")
+        a = _affine4(a[:3])
+        if _check_space(affine_space) == "ras":
+            a = _LPS_TO_RAS @ a
+        return a[:3].tolist()
+    s = [1.0, 1.0, 1.0] if spacing is None else [float(x) for x in spacing]
+    if len(s) != 3:
+        raise ParameterError(f"spacing: expected 3 numbers, got {len(s)}")
+    return _septa.spacing_affine_lps(s, [0.0, 0.0, 0.0])
+
+
+def _samples(values: Any, ndim: int, what: str) -> np.ndarray:
+    a = np.asarray(values)
+    if a.ndim != ndim:
+        raise InputError(f"values: expected a {ndim}-D array {what}, got shape {a.shape}")
+    if a.dtype.kind not in "iuf" and a.dtype.kind != "b":
+        raise InputError(f"values: expected numbers, got {a.dtype}")
+    if a.dtype not in (np.uint8, np.int16, np.uint16, np.int32, np.float32, np.float64):
+        a = a.astype(np.float64)
+    return a
+
+
+def _surface_arrays(arrays: Dict[str, Any], space: str) -> Surface:
+    vertices = np.asarray(arrays["vertices"])
+    if space == "ras":
+        vertices = vertices * np.array([-1.0, -1.0, 1.0])
+    return Surface(vertices=vertices, triangles=np.asarray(arrays["triangles"]))
+
+
+@dataclass(frozen=True)
+class IsoSurface(Surface):
+    """A VESTA iso-surface (what :func:`iso` returns): a closed, outward-oriented
+    :class:`Surface` in :attr:`space`, and ``stats``, the N-cycle statistics and
+    timing of ``septa iso --json``."""
+
+    stats: Dict[str, Any] = None  # type: ignore[assignment]
+    space: str = "ras"
+
+
+def iso(
+    volume: np.ndarray,
+    iso: float,
+    mode: str = "mixed",
+    *,
+    affine: Optional[np.ndarray] = None,
+    spacing: Optional[Sequence[float]] = None,
+    affine_space: str = "ras",
+    space: str = "ras",
+    decompose: str = "l",
+    displace: bool = True,
+) -> IsoSurface:
+    """The VESTA iso-surface of a grayscale volume, as ``septa iso`` makes it: a
+    closed, outward-oriented, hole-free triangle mesh around the voxels with value
+    ≥ ``iso``.
+
+    Args:
+        volume: an ``(nx, ny, nz)`` array of any real dtype, indexed ``[x, y, z]``.
+        iso: the iso value.
+        mode: where two inside voxels share only an edge: ``"disconnect"`` keeps
+            them apart, ``"connect"`` joins them, ``"mixed"`` joins them where the
+            mean of the four voxels around the edge is ≥ iso.
+        affine, spacing, affine_space, space: as for :func:`extract`.
+        decompose: ``"l"`` (N − 2 triangles per N-cycle) or ``"h"`` (a fan around
+            its centroid).
+        displace: move the points to where linear interpolation meets ``iso``
+            (``False``: voxel face centres).
+
+    The work runs in Rust with the GIL released.
+    """
+    space = _check_space(space)
+    a = _samples(volume, 3, "(nx, ny, nz)")
+    affine_lps = _geometry(affine, spacing, affine_space)
+    arrays, stats = _septa.iso(a, affine_lps, float(iso), mode=mode, decompose=decompose, displace=displace)
+    s = _surface_arrays(arrays, space)
+    return IsoSurface(vertices=s.vertices, triangles=s.triangles, stats=json.loads(stats), space=space)
+
+
+class Hypersurface:
+    """A STEVE iso-hypersurface of a 4-D volume (what :func:`hyper` returns).
+
+    Attributes:
+        points: (N, 4) float64: x, y, z in mm (in :attr:`space`) and t.
+        tets: (M, 4) int64 oriented tetrahedra.
+        kinds: (N,) uint8: 0 support point, 1 face centre, 2 volume centre.
+        stats: counts and timing, as ``summary.json`` of ``septa hyper``.
+    """
+
+    def __init__(self, native: Any, space: str) -> None:
+        self._native = native
+        self.space: str = space
+        points, tets, kinds = native.arrays()
+        points = np.asarray(points)
+        if space == "ras":
+            points = points * np.array([-1.0, -1.0, 1.0, 1.0])
+        self.points: np.ndarray = points
+        self.tets: np.ndarray = np.asarray(tets)
+        self.kinds: np.ndarray = np.asarray(kinds)
+        self.stats: Dict[str, Any] = json.loads(native.stats_json())
+
+    def __repr__(self) -> str:
+        return f"<septa.Hypersurface: {len(self.points)} vertices, {len(self.tets)} tetrahedra>"
+
+    @property
+    def time_range(self) -> Optional[Tuple[float, float]]:
+        """The times the hypersurface spans (``None`` when it is empty)."""
+        r = self._native.time_range()
+        return None if r is None else (float(r[0]), float(r[1]))
+
+    def slice(self, time: float) -> Surface:
+        """The closed, outward-oriented surface at ``time`` (frames × time step),
+        checked by septa's validator (:class:`InvariantError` if it fails)."""
+        arrays, _frame, report = self._native.slice(float(time))
+        r = CheckReport._from_json(report)
+        if not r.passed:
+            raise InvariantError(f"the slice at t = {time} violates septa's invariants:\n{r.summary}")
+        return _surface_arrays(arrays, self.space)
+
+    def check(self) -> Dict[str, Any]:
+        """The closed-3-manifold check of the tetrahedra (``passed``, ``manifold``
+        and the counts of ``septa hyper``'s summary)."""
+        return json.loads(self._native.check_json())
+
+
+def hyper(
+    volume: np.ndarray,
+    iso: float,
+    mode: str = "mixed",
+    *,
+    time_step: float = 1.0,
+    affine: Optional[np.ndarray] = None,
+    spacing: Optional[Sequence[float]] = None,
+    affine_space: str = "ras",
+    space: str = "ras",
+    displace: bool = True,
+) -> Hypersurface:
+    """The STEVE iso-hypersurface of a 4-D volume, as ``septa hyper`` makes it: a
+    closed, oriented hypersurface of tetrahedra in (x, y, z, t) around the toxels
+    with value ≥ ``iso``; :meth:`Hypersurface.slice` cuts it into the closed surface
+    at any time.
+
+    Args:
+        volume: an ``(nx, ny, nz, nt)`` array of any real dtype, indexed ``[x, y, z, t]``
+            (as nibabel gives a 4-D NIfTI).
+        iso: the iso value.
+        mode: where two inside toxels share only a face: ``"disconnect"``,
+            ``"connect"`` or ``"mixed"`` (joined where the mean of the four toxels
+            around it is ≥ iso).
+        time_step: time between frames.
+        affine, spacing, affine_space, space: the spatial geometry, as for :func:`extract`.
+        displace: move the points to the interpolated iso value.
+    """
+    space = _check_space(space)
+    a = _samples(volume, 4, "(nx, ny, nz, nt)")
+    affine_lps = _geometry(affine, spacing, affine_space)
+    native = _septa.hyper(a, affine_lps, float(iso), time_step=float(time_step), mode=mode, displace=displace)
+    return Hypersurface(native, space)

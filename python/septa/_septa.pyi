@@ -36,14 +36,32 @@ class Extraction:
     def passed(self) -> bool: ...
     def validation_summary(self) -> str: ...
     def save(
-        self, directory: str, force: bool = False, obj: bool = False, stl: bool = False, space: str = "lps"
-    ) -> List[str]: ...
+        self,
+        directory: str,
+        force: bool = False,
+        obj: bool = False,
+        stl: bool = False,
+        space: str = "lps",
+        per_label: Sequence[str] = ...,
+    ) -> List[str]:
+        """``per_label``: any of ``"stl"``, ``"obj"``, ``"ply"``, ``"vtp"`` (``labels/<name>.<ext>``)."""
+
+class Hyper:
+    """A STEVE iso-hypersurface, as the Python side reads it."""
+
+    def arrays(self) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.int64], npt.NDArray[np.uint8]]:
+        """``(points (N, 4) x, y, z LPS mm and t, tets (M, 4), kinds (N,))``."""
+    def stats_json(self) -> str: ...
+    def time_range(self) -> Optional[Tuple[float, float]]: ...
+    def slice(self, time: float) -> Tuple[Dict[str, npt.NDArray[Any]], Optional[int], str]:
+        """``(arrays as Extraction.arrays, frame or None, validator report as JSON)``."""
+    def check_json(self) -> str: ...
 
 def read_volume(path: str) -> Tuple[npt.NDArray[np.int64], Tuple[int, int, int], List[List[float]]]:
     """``(values flat x fastest, (nx, ny, nz), 3×4 index → LPS affine rows)``."""
 
 def extract(
-    labels: npt.NDArray[np.int64],
+    volume: npt.NDArray[np.int64],
     affine_lps: Sequence[Sequence[float]],
     config_toml: Optional[str] = None,
     config_path: Optional[str] = None,
@@ -59,8 +77,36 @@ def extract(
     max_memory: Optional[int] = None,
     source_file: Optional[str] = None,
     progress: Optional[Callable[[str, str, str], None]] = None,
+    label_names: Optional[Sequence[Tuple[int, str]]] = None,
+    label_names_path: Optional[str] = None,
+    labels: Optional[Sequence[str]] = None,
+    others: Optional[str] = None,
 ) -> Extraction: ...
 def config_json_to_toml(json: str) -> str: ...
 def read_mesh(path: str) -> Dict[str, npt.NDArray[Any]]: ...
 def check(path: str) -> Tuple[bool, str]: ...
 def spacing_affine_lps(spacing: Sequence[float], origin: Sequence[float]) -> List[List[float]]: ...
+def check_arrays(
+    vertices: npt.NDArray[np.float64],
+    triangles: npt.NDArray[np.int64],
+    labels: Optional[npt.NDArray[np.int64]] = None,
+    intersections: bool = True,
+) -> str:
+    """The validator's report on the arrays, as JSON text."""
+def iso(
+    values: npt.NDArray[Any],
+    affine_lps: Sequence[Sequence[float]],
+    iso: float,
+    mode: str = "mixed",
+    decompose: str = "l",
+    displace: bool = True,
+) -> Tuple[Dict[str, npt.NDArray[Any]], str]:
+    """``(arrays as Extraction.arrays, N-cycle statistics as JSON)``."""
+def hyper(
+    values: npt.NDArray[Any],
+    affine_lps: Sequence[Sequence[float]],
+    iso: float,
+    time_step: float = 1.0,
+    mode: str = "mixed",
+    displace: bool = True,
+) -> Hyper: ...

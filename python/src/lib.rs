@@ -6,12 +6,17 @@
 
 use std::path::PathBuf;
 
-use numpy::{IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray3};
+use numpy::{
+    IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyReadonlyArrayDyn,
+    PyUntypedArrayMethods,
+};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyFileNotFoundError, PyOSError, PyValueError};
 use pyo3::prelude::*;
 
 use septa::config::{Config, RemeshOptions};
+use septa::io::label_files::LabelFormats;
+use septa::labels::{LabelNames, LabelSelection, parse_label_ref};
 use septa::mesh::InterfaceMesh;
 use septa::pipeline::{PipelineOptions, PipelineResult, Progress};
 use septa::volume::{Dims, Geometry, LabelVolume};
@@ -198,7 +203,8 @@ impl Extraction {
 
     /// Writes the output directory as `septa extract` does; the list of
     /// files written (relative paths).
-    #[pyo3(signature = (directory, force=false, obj=false, stl=false, space="lps"))]
+    #[pyo3(signature = (directory, force=false, obj=false, stl=false, space="lps", per_label=Vec::new()))]
+    #[allow(clippy::too_many_arguments)] // one keyword argument per option
     fn save(
         &self,
         py: Python<'_>,
@@ -207,9 +213,16 @@ impl Extraction {
         obj: bool,
         stl: bool,
         space: &str,
+        per_label: Vec<String>,
     ) -> PyResult<Vec<String>> {
         let space = parse_space(space)?;
-        let formats = septa::output::Formats { obj, stl };
+        let mut labels = LabelFormats::parse(per_label.iter().map(String::as_str))
+            .map_err(|e| ParameterError::new_err(format!("per_label: {e}")))?;
+        labels.stl |= stl;
+        let formats = septa::output::Formats {
+            obj,
+            per_label: labels,
+        };
         let mut manifest = self.result.manifest.clone();
         let mesh = &self.result.mesh;
         let files = py
@@ -227,15 +240,15 @@ impl Extraction {
 /// `[x, y, z]`) with the index → LPS mm `affine_lps` (3 × 4 rows).
 #[pyfunction]
 #[pyo3(signature = (
-    labels, affine_lps, config_toml=None, config_path=None, remesh=None, target_edge=None,
+    volume, affine_lps, config_toml=None, config_path=None, remesh=None, target_edge=None,
     min_edge=None, smooth_iterations=None, max_displacement=None, iterations=None,
     surface="vesta", decompose="l", intersections=false, max_memory=None, source_file=None,
-    progress=None,
+    progress=None, label_names=None, label_names_path=None, labels=None, others=None,
 ))]
 #[allow(clippy::too_many_arguments)] // one keyword argument per option
 fn extract(
     py: Python<'_>,
-    labels: PyReadonlyArray3<'_, i64>,
+    volume: PyReadonlyArray3<'_, i64>,
     affine_lps: [[f64; 4]; 3],
     config_toml: Option<String>,
     config_path: Option<PathBuf>,
@@ -251,6 +264,10 @@ fn extract(
     max_memory: Option<u64>,
     source_file: Option<PathBuf>,
     progress: Option<Py<PyAny>>,
+    label_names: Option<Vec<(i64, String)>>,
+    label_names_path: Option<PathBuf>,
+    labels: Option<Vec<String>>,
+    others: Option<String>,
 ) -> PyResult<Extraction> {
     let surface = match surface {
         "vesta" => septa::extract::Surface::Vesta,
@@ -261,16 +278,8 @@ fn extract(
             )));
         }
     };
-    let decompose = match decompose.to_ascii_lowercase().as_str() {
-        "l" => septa::extract::Decompose::L,
-        "h" => septa::extract::Decompose::H,
-        _ => {
-            return Err(ParameterError::new_err(format!(
-                "decompose = {decompose:?}: use \"l\" or \"h\""
-            )));
-        }
-    };
-    let view = labels.as_array();
+    let decompose = parse_decompose(decompose)?;
+    let view = volume.as_array();
     let shape = view.shape();
     let dims = Dims::new(shape[0], shape[1], shape[2]).map_err(to_py)?;
     // x fastest, as septa stores volumes
@@ -289,11 +298,21 @@ fn extract(
         intersections,
         max_memory,
         source_file,
+        labels: labels.map(|keep| LabelSelection {
+            keep: keep.iter().map(|l| parse_label_ref(l)).collect(),
+            others: others.as_deref().map(parse_label_ref),
+        }),
     };
     let result = py.allow_threads(|| -> septa::Result<PipelineResult> {
         let geometry = Geometry::from_affine(affine_lps)?;
         let volume = LabelVolume::from_values(dims, &values, geometry)?;
-        let config = config(config_toml, config_path)?;
+        let mut config = config(config_toml, config_path)?;
+        if let Some(path) = &label_names_path {
+            config = config.with_label_names(&septa::labels::read_label_names(path)?)?;
+        }
+        if let Some(names) = label_names {
+            config = config.with_label_names(&label_names_from(names)?)?;
+        }
         let mut report = |p: Progress<'_>| {
             let Some(callback) = &progress else {
                 return;
@@ -342,6 +361,329 @@ fn check(py: Python<'_>, path: PathBuf) -> PyResult<(bool, String)> {
     Ok((report.passed(), report.summary()))
 }
 
+/// Label names given as `(value, name)` pairs, checked as a file's are.
+fn label_names_from(names: Vec<(i64, String)>) -> septa::Result<LabelNames> {
+    let json = serde_json::Value::Array(
+        names
+            .into_iter()
+            .map(|(value, name)| serde_json::json!({"value": value, "name": name}))
+            .collect(),
+    );
+    septa::labels::parse_label_names(
+        &json.to_string(),
+        "label_names".as_ref(),
+        Some(septa::labels::LabelNameFormat::Json),
+    )
+}
+
+/// A validator report as JSON text (the Python side turns it into a dict).
+fn report_json(report: &septa::mesh::validate::Report) -> PyResult<String> {
+    let j = serde_json::json!({
+        "passed": report.passed(),
+        "failures": report.failures(),
+        "summary": report.summary(),
+        "vertices": report.vertices,
+        "triangles": report.triangles,
+        "patches": report.patches,
+        "checks": report.checks,
+        "labels": report.labels,
+    });
+    serde_json::to_string(&j).map_err(|e| SeptaError::new_err(e.to_string()))
+}
+
+/// Validates a mesh given as arrays: `vertices` (N, 3), `triangles` (M, 3)
+/// and optionally `labels` (M, 2) label values per triangle (without them
+/// the mesh is checked as one closed surface). The report as JSON text.
+#[pyfunction]
+#[pyo3(signature = (vertices, triangles, labels=None, intersections=true))]
+fn check_arrays(
+    py: Python<'_>,
+    vertices: PyReadonlyArray2<'_, f64>,
+    triangles: PyReadonlyArray2<'_, i64>,
+    labels: Option<PyReadonlyArray2<'_, i64>>,
+    intersections: bool,
+) -> PyResult<String> {
+    let shape_error = |what: &str, shape: &[usize], cols: usize| {
+        ParameterError::new_err(format!(
+            "{what}: expected an array of shape (n, {cols}), got {shape:?}"
+        ))
+    };
+    let v = vertices.as_array();
+    if v.ndim() != 2 || v.shape()[1] != 3 {
+        return Err(shape_error("vertices", v.shape(), 3));
+    }
+    let positions: Vec<glam::DVec3> = v
+        .rows()
+        .into_iter()
+        .map(|r| glam::DVec3::new(r[0], r[1], r[2]))
+        .collect();
+    let t = triangles.as_array();
+    if t.shape()[1] != 3 {
+        return Err(shape_error("triangles", t.shape(), 3));
+    }
+    let tris: Vec<[i64; 3]> = t.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
+    let pairs: Option<Vec<[i64; 2]>> = match &labels {
+        Some(l) => {
+            let l = l.as_array();
+            if l.shape()[1] != 2 {
+                return Err(shape_error("labels", l.shape(), 2));
+            }
+            Some(l.rows().into_iter().map(|r| [r[0], r[1]]).collect())
+        }
+        None => None,
+    };
+    let report = py
+        .allow_threads(|| -> septa::Result<_> {
+            let mesh = septa::io::mesh_ply::mesh_from_arrays(
+                positions,
+                &tris,
+                pairs.as_deref(),
+                &Default::default(),
+            )?;
+            let options = septa::mesh::validate::Options {
+                intersections,
+                fidelity: None,
+            };
+            Ok(septa::mesh::validate::validate(&mesh, &options))
+        })
+        .map_err(to_py)?;
+    report_json(&report)
+}
+
+/// `"disconnect"`, `"connect"` or `"mixed"`.
+fn parse_mode(mode: &str) -> PyResult<septa::iso::Mode> {
+    mode.parse()
+        .map_err(|e: septa::Error| ParameterError::new_err(format!("mode: {e}")))
+}
+
+/// A numpy array of any real dtype as the samples septa takes: the common
+/// ones without a copy, anything else as float64 (the Python side converts).
+enum Samples<'py> {
+    U8(PyReadonlyArrayDyn<'py, u8>),
+    I16(PyReadonlyArrayDyn<'py, i16>),
+    U16(PyReadonlyArrayDyn<'py, u16>),
+    I32(PyReadonlyArrayDyn<'py, i32>),
+    F32(PyReadonlyArrayDyn<'py, f32>),
+    F64(PyReadonlyArrayDyn<'py, f64>),
+}
+
+impl<'py> Samples<'py> {
+    fn from(a: &Bound<'py, PyAny>) -> PyResult<Self> {
+        if let Ok(x) = a.extract() {
+            return Ok(Samples::U8(x));
+        }
+        if let Ok(x) = a.extract() {
+            return Ok(Samples::I16(x));
+        }
+        if let Ok(x) = a.extract() {
+            return Ok(Samples::U16(x));
+        }
+        if let Ok(x) = a.extract() {
+            return Ok(Samples::I32(x));
+        }
+        if let Ok(x) = a.extract() {
+            return Ok(Samples::F32(x));
+        }
+        Ok(Samples::F64(a.extract()?))
+    }
+
+    fn shape(&self) -> Vec<usize> {
+        match self {
+            Samples::U8(a) => a.shape().to_vec(),
+            Samples::I16(a) => a.shape().to_vec(),
+            Samples::U16(a) => a.shape().to_vec(),
+            Samples::I32(a) => a.shape().to_vec(),
+            Samples::F32(a) => a.shape().to_vec(),
+            Samples::F64(a) => a.shape().to_vec(),
+        }
+    }
+}
+
+/// The values of an array indexed `[x, y, z(, t)]`, x fastest.
+fn x_fastest<T: Copy + numpy::Element>(a: &PyReadonlyArrayDyn<'_, T>) -> Vec<T> {
+    a.as_array().t().iter().copied().collect()
+}
+
+/// The VESTA iso-surface of `values` (an `(nx, ny, nz)` array of any real
+/// dtype) with the index → LPS mm `affine_lps`: the arrays of
+/// [`Extraction::arrays`] and the N-cycle statistics as JSON text.
+#[pyfunction]
+#[pyo3(signature = (values, affine_lps, iso, mode="mixed", decompose="l", displace=true))]
+fn iso<'py>(
+    py: Python<'py>,
+    values: &Bound<'py, PyAny>,
+    affine_lps: [[f64; 4]; 3],
+    iso: f64,
+    mode: &str,
+    decompose: &str,
+    displace: bool,
+) -> PyResult<(Py<PyAny>, String)> {
+    let samples = Samples::from(values)?;
+    let shape = samples.shape();
+    if shape.len() != 3 {
+        return Err(InputError::new_err(format!(
+            "values: expected a 3-D array (nx, ny, nz), got shape {shape:?}"
+        )));
+    }
+    let dims = Dims::new(shape[0], shape[1], shape[2]).map_err(to_py)?;
+    let opts = septa::iso::IsoOptions {
+        iso,
+        mode: parse_mode(mode)?,
+        decompose: parse_decompose(decompose)?,
+        displace,
+    };
+    let geometry = Geometry::from_affine(affine_lps).map_err(to_py)?;
+    macro_rules! run {
+        ($a:expr) => {{
+            let v = x_fastest($a);
+            py.allow_threads(|| septa::iso::iso_surface(&v, dims, geometry, &opts))
+        }};
+    }
+    let surface = match &samples {
+        Samples::U8(a) => run!(a),
+        Samples::I16(a) => run!(a),
+        Samples::U16(a) => run!(a),
+        Samples::I32(a) => run!(a),
+        Samples::F32(a) => run!(a),
+        Samples::F64(a) => run!(a),
+    }
+    .map_err(to_py)?;
+    let stats =
+        serde_json::to_string(&surface.stats).map_err(|e| SeptaError::new_err(e.to_string()))?;
+    Ok((mesh_arrays(py, &surface.mesh)?, stats))
+}
+
+/// A STEVE iso-hypersurface, as the Python side reads it.
+#[pyclass(module = "septa._septa", frozen)]
+struct Hyper {
+    h: septa::hyper::Hypersurface,
+}
+
+#[pymethods]
+impl Hyper {
+    /// `(points (N, 4) x, y, z LPS mm and t, tets (M, 4) int64, kinds (N,) uint8)`.
+    #[allow(clippy::type_complexity)]
+    fn arrays<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(
+        Bound<'py, PyAny>,
+        Bound<'py, PyAny>,
+        Bound<'py, PyArray1<u8>>,
+    )> {
+        let points: Vec<f64> = self.h.physical_points().into_iter().flatten().collect();
+        let n = points.len() / 4;
+        let tets: Vec<i64> = self
+            .h
+            .physical_tets()
+            .into_iter()
+            .flat_map(|t| t.map(i64::from))
+            .collect();
+        let m = tets.len() / 4;
+        let kinds: Vec<u8> = self.h.kinds.iter().map(|&k| k as u8).collect();
+        Ok((
+            points.into_pyarray(py).reshape([n, 4])?.into_any(),
+            tets.into_pyarray(py).reshape([m, 4])?.into_any(),
+            kinds.into_pyarray(py),
+        ))
+    }
+
+    /// Counts and timing as JSON text.
+    fn stats_json(&self) -> PyResult<String> {
+        serde_json::to_string(&self.h.stats).map_err(|e| SeptaError::new_err(e.to_string()))
+    }
+
+    /// The physical time range, if the hypersurface is not empty.
+    fn time_range(&self) -> Option<(f64, f64)> {
+        self.h.time_range()
+    }
+
+    /// The closed surface at physical time `time`: the arrays of
+    /// [`Extraction::arrays`], the frame whose own time it is (if any), and
+    /// the validator's report as JSON text.
+    fn slice(&self, py: Python<'_>, time: f64) -> PyResult<(Py<PyAny>, Option<usize>, String)> {
+        let (s, report) = py
+            .allow_threads(|| -> septa::Result<_> {
+                let s = self.h.slice(time)?;
+                let report = septa::mesh::validate::validate(
+                    &s.mesh,
+                    &septa::mesh::validate::Options::default(),
+                );
+                Ok((s, report))
+            })
+            .map_err(to_py)?;
+        Ok((mesh_arrays(py, &s.mesh)?, s.frame, report_json(&report)?))
+    }
+
+    /// The closed-3-manifold check of the tetrahedra, as JSON text.
+    fn check_json(&self, py: Python<'_>) -> PyResult<String> {
+        let r = py.allow_threads(|| {
+            septa::hyper::check_closed_manifold(self.h.points.len(), &self.h.tets)
+        });
+        let mut j = serde_json::to_value(&r).map_err(|e| SeptaError::new_err(e.to_string()))?;
+        j["passed"] = r.passed().into();
+        j["manifold"] = r.is_manifold().into();
+        Ok(j.to_string())
+    }
+}
+
+/// The STEVE iso-hypersurface of `values` (an `(nx, ny, nz, nt)` array of
+/// any real dtype, frames `time_step` apart) with the spatial index → LPS
+/// mm `affine_lps`.
+#[pyfunction]
+#[pyo3(signature = (values, affine_lps, iso, time_step=1.0, mode="mixed", displace=true))]
+fn hyper<'py>(
+    py: Python<'py>,
+    values: &Bound<'py, PyAny>,
+    affine_lps: [[f64; 4]; 3],
+    iso: f64,
+    time_step: f64,
+    mode: &str,
+    displace: bool,
+) -> PyResult<Hyper> {
+    let samples = Samples::from(values)?;
+    let shape = samples.shape();
+    if shape.len() != 4 {
+        return Err(InputError::new_err(format!(
+            "values: expected a 4-D array (nx, ny, nz, nt), got shape {shape:?}"
+        )));
+    }
+    let dims = [shape[0], shape[1], shape[2], shape[3]];
+    let opts = septa::hyper::HyperOptions {
+        iso,
+        mode: parse_mode(mode)?,
+        displace,
+    };
+    let geometry = Geometry::from_affine(affine_lps).map_err(to_py)?;
+    macro_rules! run {
+        ($a:expr) => {{
+            let v = x_fastest($a);
+            py.allow_threads(|| septa::hyper::hypersurface(&v, dims, geometry, time_step, &opts))
+        }};
+    }
+    let h = match &samples {
+        Samples::U8(a) => run!(a),
+        Samples::I16(a) => run!(a),
+        Samples::U16(a) => run!(a),
+        Samples::I32(a) => run!(a),
+        Samples::F32(a) => run!(a),
+        Samples::F64(a) => run!(a),
+    }
+    .map_err(to_py)?;
+    Ok(Hyper { h })
+}
+
+/// `"l"` or `"h"`.
+fn parse_decompose(decompose: &str) -> PyResult<septa::extract::Decompose> {
+    match decompose.to_ascii_lowercase().as_str() {
+        "l" => Ok(septa::extract::Decompose::L),
+        "h" => Ok(septa::extract::Decompose::H),
+        _ => Err(ParameterError::new_err(format!(
+            "decompose = {decompose:?}: use \"l\" or \"h\""
+        ))),
+    }
+}
+
 /// The affine of a volume with `spacing` (mm) and its first voxel's centre
 /// at `origin` (LPS mm), axes along L, P, S.
 #[pyfunction]
@@ -362,6 +704,10 @@ fn _septa(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("InvariantError", py.get_type::<InvariantError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<Extraction>()?;
+    m.add_class::<Hyper>()?;
+    m.add_function(wrap_pyfunction!(check_arrays, m)?)?;
+    m.add_function(wrap_pyfunction!(iso, m)?)?;
+    m.add_function(wrap_pyfunction!(hyper, m)?)?;
     m.add_function(wrap_pyfunction!(read_volume, m)?)?;
     m.add_function(wrap_pyfunction!(extract, m)?)?;
     m.add_function(wrap_pyfunction!(config_json_to_toml, m)?)?;

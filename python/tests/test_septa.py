@@ -312,3 +312,146 @@ def test_cli_space_ras_overlays_nibabels_voxel_centres(tmp_path):
     # the same from Python, space="ras"
     m = septa.extract(labels, affine=img.affine, config=HEART, remesh=False)
     assert np.allclose(m.vertices, ply["vertices"], atol=1e-4)
+
+
+# ---- labels, per-label files, iso, hyper, check in memory ----
+
+
+def three_boxes(n=12):
+    """0 outside; 1 and 2 side by side, 3 on top of both."""
+    v = np.zeros((n, n, n), dtype=np.int16)
+    v[2:6, 2:10, 2:7] = 1
+    v[6:10, 2:10, 2:7] = 2
+    v[2:10, 2:10, 7:10] = 3
+    return v
+
+
+def test_labels_subset_and_others():
+    v = three_boxes()
+    m = septa.extract(v, select=[1, 3], remesh=False)
+    assert {tuple(p) for p in m.labels.tolist()} == {(0, 1), (0, 3), (1, 3)}
+    assert m.manifest["parameters"]["label_selection"] == {"kept": [0, 1, 3], "merged": [2], "into": 0}
+    assert septa.check(m).passed
+    into = septa.extract(v, select=["core"], others="top", label_names={1: "core", 3: "top"}, remesh=False)
+    assert {tuple(p) for p in into.labels.tolist()} == {(0, 1), (0, 3), (1, 3)}
+    assert into.label_names == {0: "label0", 1: "core", 3: "top"}
+    with pytest.raises(septa.SeptaError, match="labels 9: label label9 does not occur"):
+        septa.extract(v, select=[9], remesh=False)
+    with pytest.raises(septa.ParameterError, match="others"):
+        septa.extract(v, others=3)
+
+
+def test_label_names_from_files(tmp_path):
+    v = three_boxes()
+    ctbl = tmp_path / "colors.ctbl"
+    ctbl.write_text("# Slicer colour table\n0 Background 0 0 0 0\n1 left part 255 0 0 255\n")
+    m = septa.extract(v, label_names=ctbl, remesh=False)
+    assert m.label_names[1] == "left part" and m.label_names[2] == "label2"
+    snap = tmp_path / "snap.txt"
+    snap.write_text('# ITK-SnAP\n    0 0 0 0 0 0 0 "Clear Label"\n    3 0 0 255 1 1 1 "top box"\n')
+    m = septa.extract(v, label_names=snap, remesh=False)
+    assert m.label_names[3] == "top box"
+    assert {p["name_a"] for p in m.manifest["patches"]} >= {"Clear Label"}
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"1": "a", "x": "b"}')
+    with pytest.raises(septa.ConfigError, match='bad.json: "x"'):
+        septa.extract(v, label_names=bad, remesh=False)
+    with pytest.raises(septa.ConfigError, match="also given to label 1"):
+        septa.extract(v, label_names={1: "same", 2: "same"}, remesh=False)
+
+
+def test_per_label_files_are_watertight_in_trimesh(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    vol = septa.read_volume(PHANTOM)
+    m = septa.extract(vol.labels, affine=vol.affine_ras, config=HEART, remesh=False)
+    files = m.save(tmp_path / "out", per_label=["stl", "obj", "ply", "vtp"])
+    names = [n for _, n in sorted(m.label_names.items())]
+    assert len(names) == 8
+    for name in names:
+        for ext in ("stl", "obj", "ply", "vtp"):
+            assert f"labels/{name}.{ext}" in files
+        for ext in ("stl", "obj", "ply"):
+            mesh = trimesh.load(tmp_path / "out" / "labels" / f"{name}.{ext}", force="mesh")
+            assert mesh.is_watertight, (name, ext)
+            assert mesh.is_winding_consistent, (name, ext)
+            # outward: positive volume, but for the outside label around everything
+            assert (mesh.volume > 0) == (name != "background"), (name, ext, mesh.volume)
+    with pytest.raises(septa.ParameterError, match="per-label format"):
+        m.save(tmp_path / "x", per_label=["gltf"])
+
+
+def test_check_in_memory_reports_failures():
+    m = septa.extract(nested_cubes(), remesh=False)
+    r = septa.check(m)
+    assert isinstance(r, septa.CheckReport) and r and r.failures == 0 and r.failed == []
+    assert {l["value"] for l in r.labels} == {0, 1, 2, 3}
+    assert septa.check(m.vertices, m.triangles, m.labels).passed
+    s = m.label_surface(2)
+    assert septa.check(s).passed
+    # a hole: drop a triangle of the closed surface
+    broken = septa.check(s.vertices, s.triangles[1:])
+    assert not broken and broken.failures > 0
+    assert "label surfaces closed" in broken.failed
+    assert "INVARIANTS VIOLATED" in broken.summary
+    # a flipped triangle
+    t = s.triangles.copy()
+    t[0] = t[0][::-1]
+    assert "label surfaces oriented" in septa.check(s.vertices, t).failed
+    with pytest.raises(septa.SeptaError, match="refers to vertex"):
+        septa.check(s.vertices, s.triangles + 10_000)
+    with pytest.raises(septa.ParameterError, match="shape"):
+        septa.check(s.vertices[:, :2], s.triangles)
+
+
+def ball(n=16, r=5.0):
+    x, y, z = np.mgrid[:n, :n, :n] - (n - 1) / 2
+    return 100.0 * np.exp(-(x**2 + y**2 + z**2) / (2 * r * r))
+
+
+def test_iso_surface_is_closed_and_matches_the_cli(tmp_path):
+    v = ball()
+    s = septa.iso(v, 50.0, spacing=(1.0, 1.0, 1.0), space="lps")
+    assert isinstance(s, septa.Surface)
+    assert set(edge_uses(s.triangles).values()) == {2}
+    assert signed_volume(s) > 0
+    assert septa.check(s).passed
+    assert s.stats["cycles_by_length"][3] > 0
+    # the same volume, other dtypes and modes
+    assert len(septa.iso(v.astype(np.uint8), 50, mode="connect").triangles) > 0
+    assert len(septa.iso(v.astype(np.int64), 50, mode="disconnect", decompose="h").triangles) > 0
+    with pytest.raises(septa.ParameterError, match="mode"):
+        septa.iso(v, 50, mode="sideways")
+    with pytest.raises(septa.InputError, match="3-D"):
+        septa.iso(v[0], 50)
+    nib = pytest.importorskip("nibabel")
+    binary = septa_binary()
+    if binary is None:
+        pytest.skip("no septa binary")
+    path = tmp_path / "ball.nii.gz"
+    nib.save(nib.Nifti1Image(v.astype(np.float32), np.diag([-1.0, -1.0, 1.0, 1.0])), path)
+    subprocess.run([binary, "-q", "iso", str(path), "--iso", "50", "-o", str(tmp_path / "b.ply")], check=True)
+    cli = septa._septa.read_mesh(str(tmp_path / "b.ply"))
+    mine = septa.iso(v.astype(np.float32), 50, affine=np.diag([-1.0, -1.0, 1.0, 1.0]), space="lps")
+    assert np.array_equal(cli["triangles"], mine.triangles)
+    assert np.allclose(cli["vertices"], mine.vertices, atol=1e-4)
+
+
+def test_hyper_slices_are_closed_and_frames_are_vesta():
+    frames = np.stack([ball(12, 3.0), ball(12, 4.0), ball(12, 3.5)], axis=-1)
+    h = septa.hyper(frames, 50.0, time_step=0.5, space="lps")
+    assert "Hypersurface" in repr(h)
+    assert h.points.shape[1] == 4 and h.tets.shape[1] == 4 and len(h.kinds) == len(h.points)
+    assert h.check()["passed"]
+    lo, hi = h.time_range
+    assert lo < 0.0 and hi > 1.0
+    mid = h.slice(0.25)
+    assert set(edge_uses(mid.triangles).values()) == {2}
+    # at a frame's time, the slice is that frame's VESTA surface (H decomposition)
+    at = h.slice(0.5)
+    vesta = septa.iso(frames[..., 1], 50.0, decompose="h", space="lps")
+    assert len(at.triangles) == len(vesta.triangles)
+    assert np.allclose(np.sort(at.vertices, axis=0), np.sort(vesta.vertices, axis=0))
+    with pytest.raises(septa.InputError, match="4-D"):
+        septa.hyper(frames[..., 0], 50.0)
+    with pytest.raises(septa.SeptaError, match="time step"):
+        septa.hyper(frames, 50.0, time_step=0.0)

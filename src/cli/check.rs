@@ -10,7 +10,7 @@ use super::ui::{Ui, secs};
 use septa::Result;
 use septa::io::mesh_ply::read_ply;
 use septa::mesh::quality::{QualityOptions, quality};
-use septa::mesh::validate::{Check, Options, validate};
+use septa::mesh::validate::{Check, Options, validate, validate_patch};
 
 #[derive(Args, Debug)]
 pub struct CheckArgs {
@@ -36,10 +36,16 @@ pub struct CheckArgs {
     pub target_edge: Option<f64>,
 }
 
-/// Said when a patch file (one with the `vid` vertex property) fails.
-const PATCH_FILE_NOTE: &str = "note: this is a single patch file (its vertices carry `vid`): a \
-     patch is open by design, its boundary is where it meets the other patches, so the \
-     closed-surface checks fail on it alone; check interfaces.ply for the whole mesh";
+/// Said of a patch file (one patch, vertices with the `vid` property).
+const PATCH_FILE_NOTE: &str = "a single patch file (its vertices carry `vid`): a patch is open \
+     by design, its boundary is where it meets the other patches, so it is checked as one \
+     patch (a subset of an oriented 2-manifold), not as closed surfaces; check interfaces.ply \
+     for the whole mesh";
+
+/// Said when a file with `vid` vertices but several patches fails.
+const MULTI_PATCH_NOTE: &str = "note: the vertices carry `vid` as in septa's patch files, but \
+     the file holds several patches; if it is a part of a mesh, the closed-surface checks \
+     fail on it by design: check interfaces.ply for the whole mesh";
 
 pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
     let stage = ui.stage("reading");
@@ -49,13 +55,17 @@ pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
         ui.warn(note);
     }
     let stage = ui.stage("validating");
-    let mut report = validate(
-        &ply.mesh,
-        &Options {
-            intersections: args.intersections,
-            fidelity: None,
-        },
-    );
+    let options = Options {
+        intersections: args.intersections,
+        fidelity: None,
+    };
+    // a patch file (its vertices carry `vid`) is one open patch by design
+    let patch_file = ply.vertex_ids.is_some() && ply.mesh.patches.len() == 1;
+    let mut report = if patch_file {
+        validate_patch(&ply.mesh, &options)
+    } else {
+        validate(&ply.mesh, &options)
+    };
     let t_check = stage.done();
     // a face of 0, 1 or 2 vertices is no surface: the file fails the check
     let mut short = Check::new("faces of at least three vertices");
@@ -80,7 +90,7 @@ pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
         None
     };
     if args.json {
-        let mut j = serde_json::json!({"file": show(&args.mesh), "passed": report.passed(), "report": report});
+        let mut j = serde_json::json!({"file": show(&args.mesh), "passed": report.passed(), "patch_file": patch_file, "report": report});
         if let Some(q) = &quality {
             j["quality"] = serde_json::to_value(q).expect("json");
         }
@@ -92,9 +102,12 @@ pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
             secs(t_read),
             secs(t_check)
         ));
-        ui.say(report.summary().trim_end());
-        if !report.passed() && ply.vertex_ids.is_some() {
+        if patch_file {
             ui.say(PATCH_FILE_NOTE);
+        }
+        ui.say(report.summary().trim_end());
+        if !patch_file && !report.passed() && ply.vertex_ids.is_some() {
+            ui.say(MULTI_PATCH_NOTE);
         }
         if ui.verbose > 0 {
             for l in &report.labels {

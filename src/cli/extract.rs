@@ -14,6 +14,8 @@ use septa::Result;
 use septa::config::RemeshOptions;
 use septa::extract::{Decompose, Surface};
 use septa::io::Space;
+use septa::io::label_files::LabelFormats;
+use septa::labels::{LabelSelection, parse_label_ref};
 use septa::output::{Formats, OutDir, write_outdir};
 use septa::pipeline::{self, PipelineOptions, PipelineResult, Progress};
 
@@ -38,6 +40,15 @@ pub enum FormatArg {
     Obj,
     Vtp,
     Stl,
+}
+
+/// Formats of the per-label surfaces.
+#[derive(Clone, Copy, Debug, ValueEnum, PartialEq, Eq)]
+pub enum LabelFormatArg {
+    Stl,
+    Obj,
+    Ply,
+    Vtp,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum, PartialEq, Eq)]
@@ -65,10 +76,23 @@ pub struct ExtractArgs {
     #[arg(long, value_enum, default_value = "vesta")]
     pub surface: SurfaceArg,
     /// Extra formats besides PLY and VTP (both always written): obj (all patches, one group
-    /// each), stl (one closed outward surface per label, for printing); vtp is accepted and
-    /// changes nothing. Repeatable or comma-separated.
+    /// each), stl (one closed outward surface per label, for printing: as --per-label stl);
+    /// vtp is accepted and changes nothing. Repeatable or comma-separated.
     #[arg(long = "format", value_enum, value_delimiter = ',')]
     pub formats: Vec<FormatArg>,
+    /// Also write each label's closed, outward-oriented surface on its own, as
+    /// labels/NAME.EXT in each FORMAT (stl, obj, ply, vtp; repeatable or comma-separated);
+    /// NAME is the label's name made safe for file names, label<value> without one.
+    #[arg(long, value_enum, value_delimiter = ',', value_name = "FORMAT")]
+    pub per_label: Vec<LabelFormatArg>,
+    /// Mesh only these labels (values or names, comma-separated or repeated): every other
+    /// label is merged into the outside label (or into --others) before anything else.
+    #[arg(long, value_name = "LABEL,...", value_delimiter = ',')]
+    pub labels: Vec<String>,
+    /// With --labels: the label the unselected labels become (value or name; default: the
+    /// outside label).
+    #[arg(long, value_name = "LABEL", requires = "labels")]
+    pub others: Option<String>,
     /// Coordinate system of the mesh files, in mm (their header comments and the manifest say
     /// which).
     #[arg(long, value_enum, default_value = "lps", ignore_case = true)]
@@ -132,13 +156,17 @@ fn parse_size(s: &str) -> std::result::Result<u64, String> {
 
 /// Turns a library parameter error into one about the flag or config key.
 fn blame(e: septa::Error, args: &ExtractArgs, config: &septa::config::Config) -> septa::Error {
-    let septa::Error::Parameter {
-        name,
-        value,
-        problem,
-    } = e
-    else {
-        return e;
+    let (name, value, problem) = match e {
+        septa::Error::Parameter {
+            name,
+            value,
+            problem,
+        } => (name, value, problem),
+        // the label selection names its options as the library calls them
+        septa::Error::Invalid(m) if m.starts_with("labels ") || m.starts_with("others ") => {
+            return septa::Error::invalid(format!("--{m}"));
+        }
+        other => return other,
     };
     let (flag, given) = match name {
         "target_edge" => ("--target-edge", args.target_edge.is_some()),
@@ -188,6 +216,15 @@ fn pipeline_options(args: &ExtractArgs) -> PipelineOptions {
         intersections: args.intersections,
         max_memory: args.max_memory,
         source_file: Some(args.input.volume.clone()),
+        labels: (!args.labels.is_empty()).then(|| LabelSelection {
+            keep: args
+                .labels
+                .iter()
+                .filter(|l| !l.trim().is_empty())
+                .map(|l| parse_label_ref(l))
+                .collect(),
+            others: args.others.as_deref().map(parse_label_ref),
+        }),
     }
 }
 
@@ -228,9 +265,15 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
     manifest
         .timings_s
         .insert("read".into(), read_time.as_secs_f64());
+    let has = |f: LabelFormatArg| args.per_label.contains(&f);
     let formats = Formats {
         obj: args.formats.contains(&FormatArg::Obj),
-        stl: args.formats.contains(&FormatArg::Stl),
+        per_label: LabelFormats {
+            stl: has(LabelFormatArg::Stl) || args.formats.contains(&FormatArg::Stl),
+            obj: has(LabelFormatArg::Obj),
+            ply: has(LabelFormatArg::Ply),
+            vtp: has(LabelFormatArg::Vtp),
+        },
     };
     let space = match args.space {
         SpaceArg::Lps => Space::Lps,
@@ -349,6 +392,29 @@ fn summarize(
     let total: Duration = timings.iter().map(|t| t.1).sum();
     rows.push(vec!["total".into(), secs(total), String::new()]);
     ui.say(table(&["stage", "time", ""], &rows));
+    if let Some(sel) = &m.parameters.label_selection {
+        let name = |v: i64| {
+            m.labels
+                .iter()
+                .find(|l| l.value == v)
+                .map_or_else(|| format!("label{v}"), |l| l.name.clone())
+        };
+        let list = |vs: &[i64]| vs.iter().map(|&v| name(v)).collect::<Vec<_>>().join(", ");
+        ui.say(format!(
+            "  labels meshed: {}; merged into {}: {}",
+            list(&sel.kept),
+            name(sel.into),
+            if sel.merged.is_empty() {
+                "none".to_string()
+            } else {
+                sel.merged
+                    .iter()
+                    .map(i64::to_string)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            }
+        ));
+    }
     if !report.passed() {
         ui.say(report.summary().trim_end());
     }

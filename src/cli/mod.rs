@@ -82,6 +82,12 @@ pub struct VolumeArgs {
     /// Configuration (TOML): label names, outside label, priority, separation constraints, remeshing.
     #[arg(short, long, value_name = "CONFIG")]
     pub config: Option<PathBuf>,
+    /// Label names from a file (they win over the config's [labels]): JSON ({"1": "grey matter"}
+    /// or [{"value": 1, "name": "grey matter"}]), TOML ([labels] as in the config), a 3D Slicer
+    /// colour table (.ctbl/.txt: `value name r g b a`) or an ITK-SNAP label description
+    /// (`IDX R G B A VIS MSH "LABEL"`); the format is found from the extension or the content.
+    #[arg(long, value_name = "FILE")]
+    pub label_names: Option<PathBuf>,
     /// Raw files: extents along x, y, z (e.g. 256,256,128).
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_usize3, help_heading = "Raw input")]
     pub dims: Option<[usize; 3]>,
@@ -114,9 +120,13 @@ impl VolumeArgs {
     }
 
     fn config(&self) -> Result<Config> {
-        match &self.config {
-            Some(p) => Config::from_file(p),
-            None => Ok(Config::default()),
+        let config = match &self.config {
+            Some(p) => Config::from_file(p)?,
+            None => Config::default(),
+        };
+        match &self.label_names {
+            Some(p) => config.with_label_names(&septa::labels::read_label_names(p)?),
+            None => Ok(config),
         }
     }
 }
@@ -135,6 +145,7 @@ fn read(args: &VolumeArgs) -> Result<(LabelVolume, Config, Vec<PathBuf>)> {
     let image = septa::io::read_image(&args.volume, &args.read_options()?)?;
     let mut sources = image.sources.clone();
     sources.extend(args.config.iter().cloned());
+    sources.extend(args.label_names.iter().cloned());
     Ok((image.into_label_volume()?, config, sources))
 }
 

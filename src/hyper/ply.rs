@@ -110,8 +110,8 @@ pub fn write_hypersurface_ply(
         .position(|p| p.iter().any(|c| !(*c as f32).is_finite()))
     {
         return Err(Error::invalid(format!(
-            "vertex {i} at {:?} does not fit a float",
-            points[i]
+            "vertex {i} at ({}) does not fit a float",
+            points[i].map(|c| format!("{c:.3}")).join(", ")
         )));
     }
     if points.len() > i32::MAX as usize {

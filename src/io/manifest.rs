@@ -77,6 +77,21 @@ pub struct ManifestParameters {
     pub outside: i64,
     pub priority: Vec<String>,
     pub separate: Vec<ManifestSeparation>,
+    /// The labels meshed when only some were chosen (`--labels`); `null`:
+    /// all of them.
+    pub label_selection: Option<ManifestLabelSelection>,
+}
+
+/// Which labels were meshed, and what became of the others.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct ManifestLabelSelection {
+    /// Values of the labels kept (the chosen ones, the outside label and
+    /// the one the others were merged into).
+    pub kept: Vec<i64>,
+    /// Values of the labels merged into `into`.
+    pub merged: Vec<i64>,
+    /// The label they became.
+    pub into: i64,
 }
 
 /// One label: original value, name, size.

@@ -118,8 +118,8 @@ pub(crate) fn check_writable(mesh: &InterfaceMesh) -> Result<()> {
     }
     if let Some(i) = mesh.positions.iter().position(|p| !fits_f32(*p)) {
         return Err(Error::invalid(format!(
-            "vertex {i} is at {:?}: not a finite position that fits a float",
-            mesh.positions[i]
+            "vertex {i} is at {}: not a finite position that fits a float",
+            crate::mesh::fmt_point(mesh.positions[i])
         )));
     }
     if let Some(t) = mesh
@@ -1015,7 +1015,10 @@ fn positions(path: &Path, vertices: &[VertexIn]) -> Result<Vec<DVec3>> {
         if !p.is_finite() {
             return Err(Error::input(
                 path,
-                format!("vertex {i} has a non-finite coordinate {p:?}"),
+                format!(
+                    "vertex {i} has a non-finite coordinate: {}",
+                    crate::mesh::fmt_point(p)
+                ),
             ));
         }
         out.push(p);
@@ -1208,5 +1211,72 @@ fn build(
         vertex_ids,
         notes,
         short_faces: tris.skipped,
+    })
+}
+
+/// An [`InterfaceMesh`] from arrays, the way [`read_ply`] builds one from a
+/// file: `values` holds each triangle's `[label_a, label_b]` (a triangle with
+/// `label_a > label_b` has the pair swapped and its corners reversed, so its
+/// normal still points from the smaller value into the larger); without it
+/// every triangle is in one patch from `inside` (0) to `outside` (1).
+/// `names` names label values. Errors name `what` (e.g. "triangles") and the
+/// first bad entry.
+pub fn mesh_from_arrays(
+    positions: Vec<DVec3>,
+    triangles: &[[i64; 3]],
+    values: Option<&[[i64; 2]]>,
+    names: &BTreeMap<i64, String>,
+) -> Result<InterfaceMesh> {
+    let n = positions.len();
+    if n > u32::MAX as usize {
+        return Err(Error::invalid(format!("{n} vertices: too many")));
+    }
+    if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+        return Err(Error::invalid(format!(
+            "vertex {i} has a non-finite coordinate ({})",
+            crate::mesh::fmt_point(positions[i])
+        )));
+    }
+    if let Some(v) = values {
+        if v.len() != triangles.len() {
+            return Err(Error::invalid(format!(
+                "{} label pairs for {} triangles",
+                v.len(),
+                triangles.len()
+            )));
+        }
+    }
+    let mut tris = Vec::with_capacity(triangles.len());
+    let mut pairs = Vec::with_capacity(triangles.len());
+    for (t, tri) in triangles.iter().enumerate() {
+        if let Some(&bad) = tri.iter().find(|&&i| i < 0 || i as u64 >= n as u64) {
+            return Err(Error::invalid(format!(
+                "triangle {t} refers to vertex {bad}, but there are {n} vertices"
+            )));
+        }
+        let t3 = tri.map(|i| i as u32);
+        let mut pair = values.map_or([0, 1], |v| v[t]);
+        if pair[0] > pair[1] {
+            pair.swap(0, 1);
+            tris.push([t3[0], t3[2], t3[1]]);
+        } else {
+            tris.push(t3);
+        }
+        pairs.push(pair);
+    }
+    let names = if values.is_some() {
+        names.clone()
+    } else {
+        BTreeMap::from([(0, "inside".to_string()), (1, "outside".to_string())])
+    };
+    let labels = label_table(Path::new("mesh"), &pairs, &names)?;
+    let (patches, triangle_patch) = patches(&labels, &pairs);
+    Ok(InterfaceMesh {
+        positions,
+        triangles: tris,
+        triangle_patch,
+        patches,
+        labels,
+        ..Default::default()
     })
 }

@@ -13,6 +13,7 @@
 //! ([`temp`]).
 
 pub mod gz;
+pub mod label_files;
 pub mod manifest;
 pub mod mesh_formats;
 pub mod mesh_ply;

@@ -17,6 +17,11 @@ use glam::DVec3;
 
 use crate::volume::{Geometry, LabelId};
 
+/// A point for messages: `(x, y, z)` with three decimals (mm: a micrometre).
+pub fn fmt_point(p: DVec3) -> String {
+    format!("({:.3}, {:.3}, {:.3})", p.x, p.y, p.z)
+}
+
 /// One interface patch: the triangles between labels `labels[0] < labels[1]`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Patch {
@@ -104,6 +109,96 @@ impl InterfaceMesh {
             }
         }
         out
+    }
+
+    /// The closed surface of `label` as a mesh of its own: the triangles of
+    /// every patch touching it over only the vertices they use, oriented
+    /// outward (away from `label`). Its labels are `label` (dense id 0) and
+    /// its neighbours (ids 1, 2, … in the order of this mesh's ids), one
+    /// patch `{0, k}` per neighbour, so that every writer puts `label` as
+    /// `label_a` and the neighbour across each triangle as `label_b` (normals
+    /// from `label_a` into `label_b`, as everywhere). The junction curves on
+    /// it come along. Empty when `label` has no patch.
+    pub fn label_surface_mesh(&self, label: LabelId) -> InterfaceMesh {
+        // neighbours in ascending id order: patch k (k ≥ 1) is {label, neighbour k}
+        let mut local_label = vec![u16::MAX; self.labels.len().max(label as usize + 1)];
+        local_label[label as usize] = 0;
+        let mut labels = vec![LabelInfo {
+            value: self.label_value(label),
+            name: self.label_name(label),
+        }];
+        let mut patch_of = vec![u32::MAX; self.patches.len()];
+        let mut patches = Vec::new();
+        for (i, p) in self.patches.iter().enumerate() {
+            let other = match p.labels {
+                [a, b] if a == label => b,
+                [a, b] if b == label => a,
+                _ => continue,
+            };
+            local_label[other as usize] = labels.len() as LabelId;
+            labels.push(LabelInfo {
+                value: self.label_value(other),
+                name: self.label_name(other),
+            });
+            patch_of[i] = patches.len() as u32;
+            patches.push(Patch {
+                labels: [0, local_label[other as usize]],
+            });
+        }
+        let mut local = vec![u32::MAX; self.positions.len()];
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        let mut triangle_patch = Vec::new();
+        for (t, &p) in self.triangle_patch.iter().enumerate() {
+            let Some(&q) = patch_of.get(p as usize) else {
+                continue;
+            };
+            if q == u32::MAX {
+                continue;
+            }
+            let mut tri = self.triangles[t];
+            if self.patches[p as usize].labels[1] == label {
+                tri.swap(1, 2);
+            }
+            triangles.push(tri.map(|v| {
+                let slot = &mut local[v as usize];
+                if *slot == u32::MAX {
+                    *slot = positions.len() as u32;
+                    positions.push(self.positions[v as usize]);
+                }
+                *slot
+            }));
+            triangle_patch.push(q);
+        }
+        let junctions = self
+            .junctions
+            .iter()
+            .filter(|c| c.labels.contains(&label))
+            .filter(|c| c.vertices.iter().all(|&v| local[v as usize] != u32::MAX))
+            .map(|c| {
+                let mut ls: Vec<LabelId> = c
+                    .labels
+                    .iter()
+                    .filter_map(|&l| local_label.get(l as usize).copied())
+                    .filter(|&l| l != u16::MAX)
+                    .collect();
+                ls.sort_unstable();
+                JunctionCurve {
+                    vertices: c.vertices.iter().map(|&v| local[v as usize]).collect(),
+                    closed: c.closed,
+                    labels: ls,
+                }
+            })
+            .collect();
+        InterfaceMesh {
+            positions,
+            triangles,
+            triangle_patch,
+            patches,
+            junctions,
+            labels,
+            geometry: self.geometry,
+        }
     }
 
     /// Labels that have at least one patch.

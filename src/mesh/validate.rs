@@ -21,7 +21,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::InterfaceMesh;
+use super::{InterfaceMesh, fmt_point};
 use crate::geom::Dsu;
 use crate::geom::intersect::self_intersections;
 use crate::geom::predicates::is_degenerate;
@@ -179,6 +179,122 @@ pub fn validate(mesh: &InterfaceMesh, opts: &Options) -> Report {
     report
 }
 
+/// Checks one patch on its own (a patch file): what holds for a patch —
+/// the vertex pool, no degenerate triangles, and that it is a subset of an
+/// oriented 2-manifold (every edge in at most two triangles, of opposite
+/// orientation; the triangles around every vertex one fan, open where the
+/// patch ends) — without the closed-surface checks, which a patch fails by
+/// design: its boundary is where it meets the other patches.
+pub fn validate_patch(mesh: &InterfaceMesh, opts: &Options) -> Report {
+    let mut report = Report {
+        vertices: mesh.positions.len(),
+        triangles: mesh.triangles.len(),
+        patches: mesh.patches.len(),
+        checks: Vec::new(),
+        labels: Vec::new(),
+    };
+    let (indices_ok, index_check) = check_indices(mesh);
+    report.checks.push(index_check);
+    if !indices_ok {
+        return report;
+    }
+    let corners = check_distinct_corners(mesh);
+    let corners_ok = corners.failures == 0;
+    report.checks.push(corners);
+    if !corners_ok {
+        return report;
+    }
+    report.checks.push(check_unused(mesh));
+    report.checks.push(check_duplicates(mesh));
+    report.checks.push(check_degenerate(mesh));
+    let (edges, fans) = check_open_manifold(mesh);
+    report.checks.push(edges);
+    report.checks.push(fans);
+    if opts.intersections {
+        report.checks.push(check_self_intersections(mesh));
+    }
+    report
+}
+
+/// Edges in at most two triangles, oppositely oriented; one fan per vertex.
+fn check_open_manifold(mesh: &InterfaceMesh) -> (Check, Check) {
+    use hashbrown::HashMap;
+    let mut edges = Check::new("patch edges in ≤ 2 triangles, oriented");
+    let mut fans = Check::new("patch manifold at vertices");
+    // directed edge → triangles using it
+    let mut uses: HashMap<(u32, u32), u32> = HashMap::new();
+    for t in &mesh.triangles {
+        for k in 0..3 {
+            *uses.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
+        }
+    }
+    let mut seen: hashbrown::HashSet<(u32, u32)> = hashbrown::HashSet::new();
+    for (&(a, b), &n) in &uses {
+        let key = (a.min(b), a.max(b));
+        if !seen.insert(key) {
+            continue;
+        }
+        let back = uses.get(&(b, a)).copied().unwrap_or(0);
+        let (forward, back) = if (a, b) == key { (n, back) } else { (back, n) };
+        if forward + back > 2 {
+            edges.fail(|| format!("edge {}-{} in {} triangles", key.0, key.1, forward + back));
+        } else if forward > 1 || back > 1 {
+            edges.fail(|| {
+                format!(
+                    "edge {}-{}: its two triangles are oriented the same way",
+                    key.0, key.1
+                )
+            });
+        }
+    }
+    // the link of each vertex: one path or one cycle
+    let mut link: Vec<Vec<(u32, u32)>> = vec![Vec::new(); mesh.positions.len()];
+    for t in &mesh.triangles {
+        for k in 0..3 {
+            link[t[k] as usize].push((t[(k + 1) % 3], t[(k + 2) % 3]));
+        }
+    }
+    for (v, l) in link.iter().enumerate() {
+        if l.is_empty() {
+            continue;
+        }
+        let mut degree: HashMap<u32, u32> = HashMap::new();
+        let mut parent: HashMap<u32, u32> = HashMap::new();
+        fn root(parent: &mut HashMap<u32, u32>, x: u32) -> u32 {
+            let mut r = x;
+            while let Some(&p) = parent.get(&r) {
+                if p == r {
+                    break;
+                }
+                r = p;
+            }
+            parent.insert(x, r);
+            r
+        }
+        for &(a, b) in l {
+            *degree.entry(a).or_default() += 1;
+            *degree.entry(b).or_default() += 1;
+            parent.entry(a).or_insert(a);
+            parent.entry(b).or_insert(b);
+            let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+            parent.insert(ra, rb);
+        }
+        let keys: Vec<u32> = parent.keys().copied().collect();
+        let mut roots: Vec<u32> = keys.iter().map(|&k| root(&mut parent, k)).collect();
+        roots.sort_unstable();
+        roots.dedup();
+        if roots.len() > 1 || degree.values().any(|&d| d > 2) {
+            fans.fail(|| {
+                format!(
+                    "vertex {v} at {}: its triangles form more than one fan",
+                    fmt_point(mesh.positions[v])
+                )
+            });
+        }
+    }
+    (edges, fans)
+}
+
 fn check_indices(mesh: &InterfaceMesh) -> (bool, Check) {
     let mut c = Check::new("vertex indices in range");
     let n = mesh.positions.len() as u32;
@@ -223,7 +339,7 @@ fn check_unused(mesh: &InterfaceMesh) -> Check {
     }
     for (v, &u) in used.iter().enumerate() {
         if !u {
-            c.fail(|| format!("vertex {v} at {:?}", mesh.positions[v]));
+            c.fail(|| format!("vertex {v} at {}", fmt_point(mesh.positions[v])));
         }
     }
     c
@@ -254,8 +370,10 @@ fn check_duplicates(mesh: &InterfaceMesh) -> Check {
                 if mesh.positions[a.1 as usize] == mesh.positions[b.1 as usize] {
                     c.fail(|| {
                         format!(
-                            "vertices {} and {} at {:?}",
-                            a.1, b.1, mesh.positions[a.1 as usize]
+                            "vertices {} and {} at {}",
+                            a.1,
+                            b.1,
+                            fmt_point(mesh.positions[a.1 as usize])
                         )
                     });
                 }
@@ -442,8 +560,8 @@ fn check_vertex(
             let l = run[0].0;
             f.fans.fail(|| {
                 format!(
-                    "vertex {u} at {:?}: label {} has more than one fan",
-                    mesh.positions[u as usize],
+                    "vertex {u} at {}: label {} has more than one fan",
+                    fmt_point(mesh.positions[u as usize]),
                     mesh.label_value(l)
                 )
             });
