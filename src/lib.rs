@@ -21,6 +21,7 @@
 //! output keeps; [`geom`] the geometry kernel they share.
 
 pub mod config;
+pub mod contour;
 pub mod error;
 pub mod estimate;
 pub mod extract;
@@ -29,7 +30,6 @@ pub mod hyper;
 pub mod io;
 pub mod iso;
 pub mod mesh;
-pub mod output;
 pub mod phantom;
 pub mod pipeline;
 pub mod preprocess;
@@ -38,3 +38,6 @@ pub mod star;
 pub mod volume;
 
 pub use error::{Error, Result};
+/// The output directory writer, [`io::output`] (its old path, kept for the
+/// command line and the Python package).
+pub use io::output;

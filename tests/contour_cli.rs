@@ -7,9 +7,9 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 use glam::DVec3;
+use septa::contour::diconex::{ContourOptions, LabelContourOptions, iso_contours, label_contours};
+use septa::io::image2d::encode_png_gray;
 use septa::io::mesh_ply::read_ply;
-use septa::iso::diconex::{ContourOptions, LabelContourOptions, iso_contours, label_contours};
-use septa::iso::image2d::encode_png_gray;
 use septa::iso::{Decompose, IsoOptions, Mode, iso_surface};
 use septa::volume::Dims;
 use serde_json::Value;

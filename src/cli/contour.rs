@@ -11,11 +11,12 @@ use clap::Args;
 use super::iso::{ModeArg, refuse_input_as_output};
 use super::show;
 use super::ui::{Ui, count, secs};
+use septa::contour::{
+    ContourFormat, ContourOptions, Image2d, LabelContourOptions, is_image_file, iso_contours,
+    label_contours, read_image2d, slice, write_contours, write_label_contours,
+};
 use septa::io::{ReadOptions, read_image};
 use septa::iso::Mode;
-use septa::iso::contour_io::{ContourFormat, write_contours, write_label_contours};
-use septa::iso::diconex::{ContourOptions, LabelContourOptions, iso_contours, label_contours};
-use septa::iso::image2d::{Image2d, is_image_file, read_image2d, slice};
 use septa::{Error, Result};
 
 #[derive(Args, Debug)]

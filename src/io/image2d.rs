@@ -1,4 +1,6 @@
-//! 2-D inputs of DICONEX: PGM/PBM and PNG files, and slices of volumes.
+//! 2-D images: reading PGM/PBM and PNG files and slices of volumes (the
+//! inputs of DICONEX, [`crate::contour`]), and encoding PNG (for
+//! `preview.png`, [`crate::render`], and tests).
 //!
 //! - **PGM/PBM** (`.pgm`, `.pbm`, `.pnm`): `P2`/`P5` (8 or 16 bit) and
 //!   `P1`/`P4` (bitmaps, 1 = black); comments allowed in the header.

@@ -14,9 +14,9 @@ use std::path::Path;
 use glam::DVec2;
 
 use super::diconex::{Contours, LabelContours};
-use super::image2d::Image2d;
 use crate::error::{Error, Result};
 use crate::io::atomic_write_with;
+use crate::io::image2d::Image2d;
 
 /// Output formats by extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
