@@ -18,7 +18,10 @@
 //! and the Python package both call it.
 //!
 //! [`mesh`] holds the output type and the validator of the invariants every
-//! output keeps; [`geom`] the geometry kernel they share.
+//! output keeps; [`geom`] the geometry kernel they share; [`render`] draws
+//! `preview.png` without a display. Beside the label pipeline: [`iso`]
+//! (VESTA iso-surfaces of gray volumes), [`contour`] (DICONEX, its 2-D
+//! analogue) and [`hyper`] (STEVE, one dimension up).
 
 pub mod config;
 pub mod contour;
@@ -34,6 +37,7 @@ pub mod phantom;
 pub mod pipeline;
 pub mod preprocess;
 pub mod remesh;
+pub mod render;
 pub mod star;
 pub mod volume;
 

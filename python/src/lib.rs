@@ -209,7 +209,11 @@ impl Extraction {
         space: &str,
     ) -> PyResult<Vec<String>> {
         let space = parse_space(space)?;
-        let formats = septa::output::Formats { obj, stl };
+        let formats = septa::output::Formats {
+            obj,
+            stl,
+            ..Default::default()
+        };
         let mut manifest = self.result.manifest.clone();
         let mesh = &self.result.mesh;
         let files = py

@@ -429,7 +429,7 @@ pub fn parse_png(bytes: &[u8], path: &Path) -> Result<Image2d> {
 
 /// Encodes samples with the `png` crate: `channels` 1 (gray), 3 (RGB) or 4
 /// (RGBA) per pixel, x fastest, rows from the top; 8 bits, or 16 bits
-/// (big-endian pairs in `data`) with `sixteen`. Fast compression with
+/// (big-endian pairs in `data`) with `sixteen`. Balanced compression with
 /// adaptive filters: meant for generated images (previews, tests).
 pub fn encode_png(
     width: usize,
@@ -467,7 +467,7 @@ pub fn encode_png(
     } else {
         png::BitDepth::Eight
     });
-    e.set_compression(png::Compression::Fast);
+    e.set_compression(png::Compression::Balanced);
     let encoded = e
         .write_header()
         .and_then(|mut wr| wr.write_image_data(data).and_then(|()| wr.finish()));
