@@ -1505,7 +1505,14 @@ fn extract_writes_preview_png_unless_no_preview() {
     let dir = tempfile::tempdir().unwrap();
     let vol = touching_blocks(dir.path());
     let with = dir.path().join("with");
-    ok(septa(["extract", p(&vol), "-o", p(&with), "-q", "--no-remesh"]));
+    ok(septa([
+        "extract",
+        p(&vol),
+        "-o",
+        p(&with),
+        "-q",
+        "--no-remesh",
+    ]));
     let png = std::fs::read(with.join("preview.png")).unwrap();
     assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"));
     let files = manifest(&with)["files"].clone();
