@@ -24,7 +24,7 @@
 //! - `surface.rs`: the parallel march over grid vertices;
 //! - `stats.rs`: N-cycle statistics (the paper's Tables II–IV).
 //!
-//! The iso value's place between two samples, [`interpolation_fraction`], is
+//! The iso value's place between two samples, `interpolation_fraction`, is
 //! shared with DICONEX ([`crate::contour`]) and STEVE ([`crate::hyper`]), so
 //! their points agree with VESTA's bit for bit.
 //!
