@@ -18,9 +18,13 @@
 //! and the Python package both call it.
 //!
 //! [`mesh`] holds the output type and the validator of the invariants every
-//! output keeps; [`geom`] the geometry kernel they share.
+//! output keeps; [`geom`] the geometry kernel they share; [`render`] draws
+//! `preview.png` without a display. Beside the label pipeline: [`iso`]
+//! (VESTA iso-surfaces of gray volumes), [`contour`] (DICONEX, its 2-D
+//! analogue) and [`hyper`] (STEVE, one dimension up).
 
 pub mod config;
+pub mod contour;
 pub mod error;
 pub mod estimate;
 pub mod extract;
@@ -30,12 +34,15 @@ pub mod io;
 pub mod iso;
 pub mod labels;
 pub mod mesh;
-pub mod output;
 pub mod phantom;
 pub mod pipeline;
 pub mod preprocess;
 pub mod remesh;
+pub mod render;
 pub mod star;
 pub mod volume;
 
 pub use error::{Error, Result};
+/// The output directory writer, [`io::output`] (its old path, kept for the
+/// command line and the Python package).
+pub use io::output;

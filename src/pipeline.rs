@@ -44,12 +44,12 @@ use crate::io::manifest::{
     ManifestParameters, ManifestPatch, ManifestPreprocessing, ManifestSeparation,
     ManifestValidation, MeshSize,
 };
+use crate::io::output::{patch_paths, rel_string};
 use crate::labels::{LabelSelection, Selected};
 use crate::mesh::InterfaceMesh;
 use crate::mesh::quality::{QualityOptions, QualityReport, quality};
 use crate::mesh::stats::patch_stats;
 use crate::mesh::validate::{self, Report, validate};
-use crate::output::{patch_paths, rel_string};
 use crate::preprocess::{Preprocessed, preprocess, subdivision_for};
 use crate::remesh::{RemeshParams, remesh};
 use crate::volume::LabelVolume;
@@ -504,7 +504,7 @@ fn manifest(p: ManifestParts<'_>) -> Manifest {
             affine_lps: g.affine(),
             orientation: g.orientation_code(),
         },
-        space: crate::output::space_description(crate::io::Space::Lps).to_string(),
+        space: crate::io::output::space_description(crate::io::Space::Lps).to_string(),
         orientation: "patch {label_a, label_b}, label_a < label_b: triangle normals point from \
                       label_a into label_b"
             .to_string(),

@@ -1502,3 +1502,35 @@ fn check_quality_against_a_reference_matches_the_manifest() {
     ]));
     assert!(text.contains("within [0.8 L, 1.33 L]"), "{text}");
 }
+
+#[test]
+fn extract_writes_preview_png_unless_no_preview() {
+    let dir = tempfile::tempdir().unwrap();
+    let vol = touching_blocks(dir.path());
+    let with = dir.path().join("with");
+    ok(septa([
+        "extract",
+        p(&vol),
+        "-o",
+        p(&with),
+        "-q",
+        "--no-remesh",
+    ]));
+    let png = std::fs::read(with.join("preview.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"));
+    let files = manifest(&with)["files"].clone();
+    assert!(files.as_array().unwrap().iter().any(|f| f == "preview.png"));
+    let without = dir.path().join("without");
+    ok(septa([
+        "extract",
+        p(&vol),
+        "-o",
+        p(&without),
+        "-q",
+        "--no-remesh",
+        "--no-preview",
+    ]));
+    assert!(!without.join("preview.png").exists());
+    let files = manifest(&without)["files"].clone();
+    assert!(!files.as_array().unwrap().iter().any(|f| f == "preview.png"));
+}

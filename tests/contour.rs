@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 
 use common::Rng;
 use glam::{DVec2, DVec3};
-use septa::iso::diconex::{ContourOptions, iso_contours};
+use septa::contour::diconex::{ContourOptions, iso_contours};
 use septa::iso::{Decompose, IsoOptions, Mode, iso_surface};
 use septa::volume::{Dims, Geometry};
 
@@ -91,7 +91,7 @@ fn cut(positions: &[DVec3], triangles: &[[u32; 3]], axis: usize, k: f64) -> Cut 
     c
 }
 
-fn diconex_segments(c: &septa::iso::diconex::Contours) -> BTreeMap<(Key, Key), usize> {
+fn diconex_segments(c: &septa::contour::diconex::Contours) -> BTreeMap<(Key, Key), usize> {
     let mut out = BTreeMap::new();
     for k in &c.contours {
         for (a, b) in k.segments() {

@@ -7,9 +7,9 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 use glam::DVec3;
+use septa::contour::diconex::{ContourOptions, LabelContourOptions, iso_contours, label_contours};
+use septa::io::image2d::encode_png_gray;
 use septa::io::mesh_ply::read_ply;
-use septa::iso::diconex::{ContourOptions, LabelContourOptions, iso_contours, label_contours};
-use septa::iso::image2d::encode_png_gray;
 use septa::iso::{Decompose, IsoOptions, Mode, iso_surface};
 use septa::volume::Dims;
 use serde_json::Value;
@@ -594,6 +594,29 @@ fn label_contours_share_junction_points() {
     ));
     let svg = std::fs::read_to_string(dir.path().join("l.svg")).unwrap();
     assert_eq!(svg.matches("class=\"junction\"").count(), 4);
+    // each label's pixels filled in its palette colour (by rank), and a
+    // legend entry per label with the same colour
+    let mut values: Vec<i64> = j["label_pairs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|p| p.as_array().unwrap().iter().map(|v| v.as_i64().unwrap()))
+        .collect();
+    values.sort_unstable();
+    values.dedup();
+    assert!(values.len() >= 3);
+    assert_eq!(svg.matches("class=\"label\"").count(), values.len());
+    let legend = &svg[svg.find("class=\"legend\"").expect("a legend")..];
+    for (k, v) in values.iter().enumerate() {
+        let colour = septa::render::palette::hex(k);
+        assert!(
+            svg.contains(&format!("data-label=\"{v}\" d=\"M")) && svg.contains(&colour),
+            "label {v}"
+        );
+        assert!(legend.contains(&format!(">{v}")), "legend lacks {v}");
+        assert_eq!(legend.matches(&colour).count(), 1, "legend colour of {v}");
+    }
+    assert!(legend.contains("(outside)"));
     // --outside changes the frame's label
     let j = json(&ok(septa(
         &[
@@ -685,13 +708,17 @@ fn contour_bad_input_gets_clear_errors() {
     );
     // corrupted and unsupported files
     let png = encode_png_gray(w, h, &v, false);
-    let mut bad = png.clone();
-    bad[40] ^= 1;
-    std::fs::write(d.join("bad.png"), &bad).unwrap();
-    fails(
-        septa(&["contour", "bad.png", "--iso", "1", "-o", "c.svg"], d),
-        &["bad.png", "checksum"],
-    );
+    // a byte of the image data, and one of a chunk type: the png crate finds
+    // a bad deflate stream, a bad CRC or an unknown critical chunk
+    for k in [40, 45] {
+        let mut bad = png.clone();
+        bad[k] ^= 1;
+        std::fs::write(d.join("bad.png"), &bad).unwrap();
+        fails(
+            septa(&["contour", "bad.png", "--iso", "1", "-o", "c.svg"], d),
+            &["bad.png", "corrupt"],
+        );
+    }
     std::fs::write(d.join("cut.png"), &png[..png.len() / 2]).unwrap();
     fails(
         septa(&["contour", "cut.png", "--iso", "1", "-o", "c.svg"], d),
@@ -709,4 +736,13 @@ fn contour_bad_input_gets_clear_errors() {
     );
     // nothing was left behind by the failures
     assert!(!d.join("c.svg").exists());
+}
+
+#[test]
+fn contour_help_describes_the_2d_modes() {
+    let dir = tempfile::tempdir().unwrap();
+    let help = ok(septa(&["contour", "--help"], dir.path()));
+    let mode = &help[help.find("--mode").unwrap()..help.find("--no-displace").unwrap()];
+    assert!(mode.contains("pixels") && mode.contains("corner"), "{mode}");
+    assert!(!mode.contains("voxel") && !mode.contains("edge"), "{mode}");
 }

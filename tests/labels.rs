@@ -116,6 +116,7 @@ fn per_label_files_in_every_format_are_closed_surfaces() {
             ply: true,
             vtp: true,
         },
+        preview: false,
     };
     let files = write_outdir(
         &OutDir::new(&out, false),

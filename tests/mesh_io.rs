@@ -813,6 +813,39 @@ fn manifest_of_the_pipeline_lists_patches_and_files() {
     }
     assert!(json["quality"].is_null());
     assert_eq!(json["validation"]["passed"], true);
+    // the preview is written by default, listed, and a PNG of 2 × 2 views
+    assert!(
+        files
+            .iter()
+            .any(|f| f == std::path::Path::new("preview.png"))
+    );
+    assert!(
+        json["files"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|f| f == "preview.png")
+    );
+    let png = std::fs::read(dir.path().join("out/preview.png")).unwrap();
+    let reader = png::Decoder::new(std::io::Cursor::new(&png[..]))
+        .read_info()
+        .unwrap();
+    assert_eq!((reader.info().width, reader.info().height), (800, 800));
+    // and not without `preview`, in a directory that --force may replace
+    let no_preview = septa::output::Formats {
+        preview: false,
+        ..Default::default()
+    };
+    let out = septa::output::OutDir::new(dir.path().join("out"), true);
+    let files =
+        septa::output::write_outdir(&out, &result.mesh, no_preview, space, &mut result.manifest)
+            .unwrap();
+    assert!(
+        !files
+            .iter()
+            .any(|f| f == std::path::Path::new("preview.png"))
+    );
+    assert!(!dir.path().join("out/preview.png").exists());
 }
 
 // ───────────────────────────── speed ─────────────────────────────

@@ -222,6 +222,7 @@ impl Extraction {
         let formats = septa::output::Formats {
             obj,
             per_label: labels,
+            ..Default::default()
         };
         let mut manifest = self.result.manifest.clone();
         let mesh = &self.result.mesh;

@@ -6,17 +6,31 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use clap::Args;
+use clap::{Args, ValueEnum};
 
-use super::iso::{ModeArg, refuse_input_as_output};
+use super::iso::refuse_input_as_output;
 use super::show;
 use super::ui::{Ui, count, secs};
+use septa::contour::{
+    ContourFormat, ContourOptions, Image2d, LabelContourOptions, is_image_file, iso_contours,
+    label_contours, read_image2d, slice, write_contours, write_label_contours,
+};
 use septa::io::{ReadOptions, read_image};
 use septa::iso::Mode;
-use septa::iso::contour_io::{ContourFormat, write_contours, write_label_contours};
-use septa::iso::diconex::{ContourOptions, LabelContourOptions, iso_contours, label_contours};
-use septa::iso::image2d::{Image2d, is_image_file, read_image2d, slice};
 use septa::{Error, Result};
+
+/// DICONEX's points of ambiguity: two inside pixels that touch only at a
+/// corner (the 2-D counterpart of `septa iso --mode`).
+#[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum ContourModeArg {
+    /// Two inside pixels touching only at a corner stay apart: separate
+    /// contours.
+    Disconnect,
+    /// They are joined: one contour passes through the corner.
+    Connect,
+    /// Joined where the mean of the four pixels around the corner is ≥ iso.
+    Mixed,
+}
 
 #[derive(Args, Debug)]
 pub struct ContourArgs {
@@ -37,9 +51,9 @@ pub struct ContourArgs {
     #[arg(long)]
     pub labels: bool,
     /// Iso-contours: how two inside pixels that touch only at a corner are
-    /// treated (mixed: joined where the mean of the four pixels is ≥ iso).
+    /// treated (label contours resolve such corners toward the smaller label).
     #[arg(long, value_enum, default_value = "mixed", ignore_case = true)]
-    pub mode: ModeArg,
+    pub mode: ContourModeArg,
     /// Iso-contours: keep support points at the pixel edge midpoints instead of
     /// interpolating the iso value along each range vector.
     #[arg(long)]
@@ -120,9 +134,9 @@ pub fn run(args: &ContourArgs, ui: &Ui) -> Result<ExitCode> {
     refuse_input_as_output(&args.output, &args.image)?;
     ContourFormat::of(&args.output)?;
     let mode = match args.mode {
-        ModeArg::Disconnect => Mode::Disconnect,
-        ModeArg::Connect => Mode::Connect,
-        ModeArg::Mixed => Mode::Mixed,
+        ContourModeArg::Disconnect => Mode::Disconnect,
+        ContourModeArg::Connect => Mode::Connect,
+        ContourModeArg::Mixed => Mode::Mixed,
     };
     if args.iso.is_some_and(f64::is_nan) {
         return Err(Error::invalid("the iso value is NaN"));

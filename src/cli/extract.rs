@@ -121,6 +121,9 @@ pub struct ExtractArgs {
     /// Split/collapse/flip/relax iterations of the remesher (default 8).
     #[arg(long, value_name = "N")]
     pub remesh_iterations: Option<u32>,
+    /// Do not write preview.png (the patches drawn from four sides).
+    #[arg(long)]
+    pub no_preview: bool,
     /// Memory the run may use (e.g. 8G, 500M; default: what the system has
     /// available). The work is estimated before preprocessing and before
     /// extracting; a run that would need more is refused.
@@ -274,6 +277,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
             ply: has(LabelFormatArg::Ply),
             vtp: has(LabelFormatArg::Vtp),
         },
+        preview: !args.no_preview,
     };
     let space = match args.space {
         SpaceArg::Lps => Space::Lps,

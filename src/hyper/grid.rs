@@ -22,11 +22,7 @@
 
 use rayon::prelude::*;
 
-use crate::iso::Scalar;
-
-/// Displaced support points stay this fraction of a cell away from the toxel
-/// centres (as in VESTA), so no two points coincide.
-pub(crate) const MIN_FRACTION: f64 = 1e-3;
+use crate::iso::{Scalar, interpolation_fraction};
 
 /// Padded extents and strides of a 4-D grid.
 #[derive(Clone, Copy, Debug)]
@@ -260,20 +256,6 @@ fn support_point<T: Scalar>(
         p[axis] = centre[axis] - 1.0 + t;
     }
     p
-}
-
-/// Where the iso value lies between an active value `va` (≥ iso) and an
-/// inactive one `vi`, as a fraction from the active end, clamped to
-/// [`MIN_FRACTION`], 1 − [`MIN_FRACTION`]; ½ if not a number. (The same rule
-/// as the 3-D iso-surface.)
-#[inline]
-pub(crate) fn interpolation_fraction(va: f64, vi: f64, iso: f64) -> f64 {
-    let t = (va - iso) / (va - vi);
-    if t.is_finite() {
-        t.clamp(MIN_FRACTION, 1.0 - MIN_FRACTION)
-    } else {
-        0.5
-    }
 }
 
 #[cfg(test)]

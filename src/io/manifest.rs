@@ -2,7 +2,7 @@
 //! scripts can find each patch's file and labels without parsing meshes.
 //!
 //! [`Manifest`] is the one manifest type: [`crate::pipeline`] fills it, the
-//! output directory writer ([`crate::output::write_outdir`]) adds the list of
+//! output directory writer ([`crate::io::output::write_outdir`]) adds the list of
 //! files and serialises it with serde (pretty JSON, written atomically).
 //!
 //! ```json

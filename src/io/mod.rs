@@ -1,5 +1,7 @@
 //! Reading and writing files: volumes (NIfTI-1/2, NRRD, MetaImage, raw) and,
-//! in submodules, meshes.
+//! in submodules, meshes ([`mesh_ply`], [`mesh_formats`]), 2-D images
+//! ([`image2d`]: PGM and PNG), the manifest ([`manifest`]) and the output
+//! directory of `septa extract` ([`output`]).
 //!
 //! Every reader turns a file into an [`Image`]: its shape (up to 4-D), typed
 //! samples in native byte order, and its [`Geometry`] in LPS millimetres. Label
@@ -13,6 +15,7 @@
 //! ([`temp`]).
 
 pub mod gz;
+pub mod image2d;
 pub mod label_files;
 pub mod manifest;
 pub mod mesh_formats;
@@ -20,6 +23,7 @@ pub mod mesh_ply;
 pub mod metaimage;
 pub mod nifti;
 pub mod nrrd;
+pub mod output;
 pub mod raw;
 pub mod temp;
 

@@ -1,4 +1,5 @@
-//! VESTA iso-surfaces of grayscale volumes, and DICONEX contours of 2-D images.
+//! VESTA iso-surfaces of grayscale volumes (their 2-D analogue, DICONEX, is
+//! [`crate::contour`]).
 //!
 //! [`iso_surface`] encloses the voxels whose value is at least the iso value
 //! with a closed, outward-oriented triangle mesh, after B. R. Schlei's VESTA:
@@ -21,10 +22,11 @@
 //! - `table.rs`: the 2×2×2 cell table (cycles, L triangulations, the 14 types);
 //! - `grid.rs`: activity bits, boundary-face ids (rank bitsets), support points;
 //! - `surface.rs`: the parallel march over grid vertices;
-//! - `stats.rs`: N-cycle statistics (the paper's Tables II–IV);
-//! - `diconex.rs`: DICONEX, the 2-D analogue (contours of images and slices);
-//! - `image2d.rs`: 2-D inputs (PGM, PNG, slices of volumes);
-//! - `contour_io.rs`: contour writers (SVG, CSV, JSON).
+//! - `stats.rs`: N-cycle statistics (the paper's Tables II–IV).
+//!
+//! The iso value's place between two samples, `interpolation_fraction`, is
+//! shared with DICONEX ([`crate::contour`]) and STEVE ([`crate::hyper`]), so
+//! their points agree with VESTA's bit for bit.
 //!
 //! ```
 //! use septa::iso::{iso_surface, IsoOptions, Mode};
@@ -38,16 +40,14 @@
 //! assert_eq!(s.stats.cycles_by_length[3], 8);
 //! ```
 
-pub mod contour_io;
 mod cpu;
-pub mod diconex;
 mod grid;
-pub mod image2d;
 mod stats;
 mod surface;
 mod table;
 
 pub use crate::extract::Decompose;
+pub(crate) use grid::interpolation_fraction;
 pub use stats::IsoStats;
 pub use table::{CycleType, cycle_types};
 

@@ -13,6 +13,8 @@
 //! - `junctions.vtp` — the same as VTK polylines, one per curve;
 //! - `manifest.json` — input, parameters, labels, patches, junctions, timings
 //!   and the validator's result;
+//! - `preview.png` — a picture of the patches from four sides
+//!   ([`crate::render`]; unless [`Formats::preview`] is off);
 //! - optionally `interfaces.obj` and `labels/<name>.{stl,obj,ply,vtp}` (the
 //!   closed outward surface of each label; see [`crate::io::label_files`]).
 //!
@@ -31,15 +33,31 @@ use crate::io::mesh_ply::{write_junctions_ply_in, write_patch_plys_in, write_ply
 use crate::io::temp;
 use crate::mesh::InterfaceMesh;
 
-/// Extra file formats besides PLY and VTP (always written).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// Extra files besides PLY and VTP (always written). The default is what
+/// `septa extract` writes without flags: the preview, no OBJ, no STL.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Formats {
     /// `interfaces.obj`: all patches, one group each.
     pub obj: bool,
     /// `labels/<name>.<ext>`: the closed outward surface of each label, in
     /// each of these formats.
     pub per_label: crate::io::label_files::LabelFormats,
+    /// `preview.png`: the patches drawn from four sides ([`crate::render`]).
+    pub preview: bool,
 }
+
+impl Default for Formats {
+    fn default() -> Self {
+        Formats {
+            obj: false,
+            per_label: Default::default(),
+            preview: true,
+        }
+    }
+}
+
+/// The picture of the patches in the output directory.
+pub const PREVIEW_FILE: &str = "preview.png";
 
 /// Longest name of a label in file names (bytes): with the other label's and
 /// the suffix, a patch file name stays far below the usual 255-byte limit.
@@ -460,6 +478,13 @@ pub fn write_outdir(
     space: Space,
     manifest: &mut Manifest,
 ) -> Result<Vec<PathBuf>> {
+    // drawn in LPS whatever the files' space, so the views keep their meaning
+    let preview = if formats.preview {
+        let opts = crate::render::PreviewOptions::default();
+        Some(crate::render::render_preview(mesh, &opts)?.to_png()?)
+    } else {
+        None
+    };
     let converted;
     let mesh = if space == Space::Lps {
         mesh
@@ -468,7 +493,7 @@ pub fn write_outdir(
         &converted
     };
     manifest.space = space_description(space).to_string();
-    outdir.write(|tmp| write_files(tmp, mesh, formats, space, manifest))
+    outdir.write(|tmp| write_files(tmp, mesh, formats, space, preview.as_deref(), manifest))
 }
 
 /// The manifest's `space`.
@@ -492,6 +517,7 @@ fn write_files(
     mesh: &InterfaceMesh,
     formats: Formats,
     space: Space,
+    preview: Option<&[u8]>,
     manifest: &mut Manifest,
 ) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir.join("patches")).map_err(|e| Error::io(dir, e))?;
@@ -524,6 +550,10 @@ fn write_files(
         formats.per_label,
         space,
     )?);
+    if let Some(png) = preview {
+        crate::io::atomic_write(&dir.join(PREVIEW_FILE), png)?;
+        files.push(PREVIEW_FILE.into());
+    }
     files.push("manifest.json".into());
     manifest.files = files.iter().map(|f| rel_string(f)).collect();
     manifest.write(&dir.join("manifest.json"))?;

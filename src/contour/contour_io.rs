@@ -2,6 +2,12 @@
 //! and JSON (everything, with physical coordinates for slices of volumes).
 //! All are written atomically (a temporary file, then a rename).
 //!
+//! The label SVG fills each label's pixels in its colour from
+//! [`crate::render::palette`] (the labels in increasing value take colours
+//! 0, 1, 2, …), draws the polylines dark over them with the junction points,
+//! and has a legend beside the image: label value → colour, the outside
+//! label marked.
+//!
 //! Coordinates are pixel index coordinates (pixel centres at integers); for
 //! slices of volumes the CSV and JSON also give LPS millimetres. The SVG's
 //! user space is the pixel grid (`viewBox` from −0.5 to width − 0.5), so it
@@ -14,9 +20,9 @@ use std::path::Path;
 use glam::DVec2;
 
 use super::diconex::{Contours, LabelContours};
-use super::image2d::Image2d;
 use crate::error::{Error, Result};
 use crate::io::atomic_write_with;
+use crate::io::image2d::Image2d;
 
 /// Output formats by extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,18 +57,133 @@ fn num(x: f64) -> String {
 }
 
 fn svg_header(w: &mut dyn Write, width: usize, height: usize, title: &str) -> std::io::Result<()> {
+    svg_header_with_legend(w, width, height, (0.0, 0.0), title)
+}
+
+/// The SVG header; `legend` the width and height (user units: pixels) of a
+/// legend to the right of the image.
+fn svg_header_with_legend(
+    w: &mut dyn Write,
+    width: usize,
+    height: usize,
+    legend: (f64, f64),
+    title: &str,
+) -> std::io::Result<()> {
+    let (vw, vh) = (width as f64 + legend.0, (height as f64).max(legend.1));
     // 1 pixel = `scale` SVG units on screen; at least ~600 px wide
     let scale = (600.0 / width.max(height) as f64).max(1.0);
     writeln!(
         w,
         r##"<?xml version="1.0" encoding="UTF-8"?>
-<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}" viewBox="-0.5 -0.5 {width} {height}">
+<svg xmlns="http://www.w3.org/2000/svg" width="{}" height="{}" viewBox="-0.5 -0.5 {vw} {vh}">
 <title>{}</title>
 <rect x="-0.5" y="-0.5" width="{width}" height="{height}" fill="white" stroke="#ccc" stroke-width="0.05"/>"##,
-        (width as f64 * scale).round(),
-        (height as f64 * scale).round(),
+        (vw * scale).round(),
+        (vh * scale).round(),
         xml_escape(title)
     )
+}
+
+/// The labels of a label image in increasing value (with `outside`), each
+/// with its palette colour number (its rank).
+fn label_colours(labels: &[i64], outside: i64) -> Vec<i64> {
+    let mut v: Vec<i64> = labels.to_vec();
+    v.push(outside);
+    v.sort_unstable();
+    v.dedup();
+    v
+}
+
+/// The font size of the legend, in pixels of the image.
+fn legend_font(width: usize, height: usize) -> f64 {
+    width.max(height) as f64 / 30.0
+}
+
+/// Width of the legend (user units) for these labels.
+fn legend_width(values: &[i64], font: f64) -> f64 {
+    let chars = values
+        .iter()
+        .map(|v| format!("{v} (outside)").len())
+        .max()
+        .unwrap_or(0);
+    font * (3.0 + 0.6 * chars as f64)
+}
+
+/// Each label's pixels as one filled path of row runs.
+fn write_label_fills(
+    w: &mut dyn Write,
+    labels: &[i64],
+    width: usize,
+    values: &[i64],
+) -> std::io::Result<()> {
+    let mut runs: Vec<String> = vec![String::new(); values.len()];
+    for (j, row) in labels.chunks(width).enumerate() {
+        let mut i = 0;
+        while i < row.len() {
+            let l = row[i];
+            let start = i;
+            while i < row.len() && row[i] == l {
+                i += 1;
+            }
+            let k = values.binary_search(&l).unwrap_or(0);
+            let d = &mut runs[k];
+            d.push_str(&format!(
+                "M{} {}h{}v1h-{}z",
+                start as f64 - 0.5,
+                j as f64 - 0.5,
+                i - start,
+                i - start
+            ));
+        }
+    }
+    for (k, d) in runs.iter().enumerate() {
+        if !d.is_empty() {
+            writeln!(
+                w,
+                r#"<path class="label" data-label="{}" d="{d}" fill="{}" fill-opacity="0.45" stroke="none"/>"#,
+                values[k],
+                crate::render::palette::hex(k)
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// `x` to 3 decimals (legend positions: no need for every digit).
+fn short(x: f64) -> String {
+    num((x * 1000.0).round() / 1000.0)
+}
+
+/// The legend: a swatch and the value of each label, right of the image.
+fn write_legend(
+    w: &mut dyn Write,
+    width: usize,
+    values: &[i64],
+    outside: i64,
+    font: f64,
+) -> std::io::Result<()> {
+    let x = width as f64 - 0.5 + font;
+    writeln!(
+        w,
+        r#"<g class="legend" font-family="sans-serif" font-size="{}">"#,
+        short(font)
+    )?;
+    for (k, &v) in values.iter().enumerate() {
+        let y = -0.5 + font * (0.5 + 1.5 * k as f64);
+        writeln!(
+            w,
+            r##"<rect x="{}" y="{}" width="{f}" height="{f}" fill="{}" fill-opacity="0.45" stroke="#333" stroke-width="{}"/><text x="{}" y="{}">{v}{}</text>"##,
+            short(x),
+            short(y),
+            crate::render::palette::hex(k),
+            short(font / 20.0),
+            short(x + 1.5 * font),
+            short(y + 0.85 * font),
+            if v == outside { " (outside)" } else { "" },
+            f = short(font),
+        )?;
+    }
+    writeln!(w, "</g>")
 }
 
 fn xml_escape(s: &str) -> String {
@@ -168,33 +289,52 @@ pub fn write_label_contours(
     meta: &serde_json::Value,
 ) -> Result<()> {
     match ContourFormat::of(path)? {
-        ContourFormat::Svg => atomic_write_with(path, |w| {
-            svg_header(
-                w,
-                lc.width,
-                lc.height,
-                &format!("label contours of {}", image.path.display()),
-            )?;
-            for (k, pl) in lc.polylines.iter().enumerate() {
-                writeln!(
-                    w,
-                    r#"<path id="p{k}" data-labels="{} {}" d="{}" fill="none" stroke="{}" stroke-width="0.12" stroke-linejoin="round"/>"#,
-                    pl.labels[0],
-                    pl.labels[1],
-                    path_data(pl.points.iter().map(|&i| lc.points[i as usize]), pl.closed),
-                    pair_color(pl.labels)
-                )?;
+        ContourFormat::Svg => {
+            let labels = image.labels()?;
+            if labels.len() != lc.width * lc.height {
+                return Err(Error::invalid(format!(
+                    "{} labels for contours of {} × {} pixels",
+                    labels.len(),
+                    lc.width,
+                    lc.height
+                )));
             }
-            for p in &lc.points[lc.first_junction..] {
-                writeln!(
+            let values = label_colours(&labels, lc.outside);
+            let font = legend_font(lc.width, lc.height);
+            let legend = (
+                legend_width(&values, font),
+                font * (0.5 + 1.5 * values.len() as f64),
+            );
+            atomic_write_with(path, |w| {
+                svg_header_with_legend(
                     w,
-                    r#"<circle class="junction" cx="{}" cy="{}" r="0.15" fill="black"/>"#,
-                    num(p.x),
-                    num(p.y)
+                    lc.width,
+                    lc.height,
+                    legend,
+                    &format!("label contours of {}", image.path.display()),
                 )?;
-            }
-            writeln!(w, "</svg>")
-        }),
+                write_label_fills(w, &labels, lc.width, &values)?;
+                for (k, pl) in lc.polylines.iter().enumerate() {
+                    writeln!(
+                        w,
+                        r##"<path id="p{k}" data-labels="{} {}" d="{}" fill="none" stroke="#222" stroke-width="0.12" stroke-linejoin="round"/>"##,
+                        pl.labels[0],
+                        pl.labels[1],
+                        path_data(pl.points.iter().map(|&i| lc.points[i as usize]), pl.closed),
+                    )?;
+                }
+                for p in &lc.points[lc.first_junction..] {
+                    writeln!(
+                        w,
+                        r#"<circle class="junction" cx="{}" cy="{}" r="0.15" fill="black"/>"#,
+                        num(p.x),
+                        num(p.y)
+                    )?;
+                }
+                write_legend(w, lc.width, &values, lc.outside, font)?;
+                writeln!(w, "</svg>")
+            })
+        }
         ContourFormat::Csv => atomic_write_with(path, |w| {
             let phys = image.slice.is_some();
             write!(
@@ -260,14 +400,4 @@ fn write_json(path: &Path, j: &serde_json::Value) -> Result<()> {
         serde_json::to_writer(&mut *w, j).map_err(std::io::Error::other)?;
         writeln!(w)
     })
-}
-
-/// A stable colour per label pair.
-fn pair_color(l: [i64; 2]) -> String {
-    let mut h = (l[0] as u64)
-        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        .wrapping_add((l[1] as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F));
-    h ^= h >> 29;
-    let hue = (h % 360) as f64;
-    format!("hsl({hue:.0},70%,40%)")
 }

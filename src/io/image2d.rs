@@ -1,11 +1,15 @@
-//! 2-D inputs of DICONEX: PGM/PBM and PNG files, and slices of volumes.
+//! 2-D images: reading PGM/PBM and PNG files and slices of volumes (the
+//! inputs of DICONEX, [`crate::contour`]), and encoding PNG (for
+//! `preview.png`, [`crate::render`], and tests).
 //!
 //! - **PGM/PBM** (`.pgm`, `.pbm`, `.pnm`): `P2`/`P5` (8 or 16 bit) and
 //!   `P1`/`P4` (bitmaps, 1 = black); comments allowed in the header.
-//! - **PNG** (`.png`): grayscale at 1–16 bits, grayscale with alpha (the alpha
-//!   is ignored) and palette images (the palette index is the value: useful
-//!   for label images); not interlaced. Color (RGB) images are refused with a
-//!   message (convert them to grayscale first). Chunk checksums are verified.
+//! - **PNG** (`.png`, decoded by the `png` crate): grayscale at 1–16 bits,
+//!   grayscale with alpha (the alpha is ignored) and palette images (the
+//!   palette index is the value: useful for label images), interlaced or not.
+//!   RGB(A) images are read only where every pixel is gray (R = G = B); real
+//!   color is refused with a message (convert it to grayscale first). Chunk
+//!   CRCs and the zlib checksum are verified.
 //! - **Slices** of any volume septa reads: [`slice()`] along x, y or z.
 //!
 //! Pixel `(i, j)` is sample `i + width · j`: for image files `j` counts rows
@@ -14,7 +18,6 @@
 //! `x = K` gives (y, z), and [`Image2d::physical`] maps pixel coordinates back
 //! to LPS millimetres.
 
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use glam::{DVec2, DVec3};
@@ -338,129 +341,81 @@ fn next_token<'a>(bytes: &'a [u8], pos: &mut usize) -> Option<&'a [u8]> {
 
 const PNG_SIGNATURE: [u8; 8] = [137, 80, 78, 71, 13, 10, 26, 10];
 
-/// Parses a PNG file (grayscale, grayscale + alpha, palette; not interlaced).
+/// Parses a PNG file with the `png` crate: grayscale (1–16 bits), grayscale
+/// with alpha (ignored), palette images (the index is the value), interlaced
+/// or not; RGB(A) only when every pixel is gray (R = G = B). Chunk CRCs and
+/// the zlib checksum are verified, and the file must end with `IEND`.
 pub fn parse_png(bytes: &[u8], path: &Path) -> Result<Image2d> {
+    use png::{BitDepth, ColorType};
     let bad = |m: String| Error::input(path, m);
-    if bytes.len() < 8 || bytes[..8] != PNG_SIGNATURE {
+    let png_error = |e: png::DecodingError| {
+        let m = e.to_string();
+        if m.contains("CRC") || m.to_ascii_lowercase().contains("adler") {
+            bad(format!("checksum mismatch (corrupt file): {m}"))
+        } else if matches!(e, png::DecodingError::IoError(_)) {
+            bad(format!("truncated or corrupt PNG: {m}"))
+        } else {
+            bad(format!("corrupt or unsupported PNG: {m}"))
+        }
+    };
+    if !bytes.starts_with(&PNG_SIGNATURE) {
         return Err(bad("not a PNG file (bad signature)".into()));
     }
-    let mut pos = 8;
-    let mut ihdr: Option<[u8; 13]> = None;
-    let mut idat = Vec::new();
-    let mut ended = false;
-    while pos < bytes.len() {
-        if pos + 8 > bytes.len() {
-            return Err(bad("truncated chunk header".into()));
-        }
-        let len = u32::from_be_bytes(bytes[pos..pos + 4].try_into().expect("4 bytes")) as usize;
-        let kind = &bytes[pos + 4..pos + 8];
-        let end = pos
-            .checked_add(12)
-            .and_then(|x| x.checked_add(len))
-            .filter(|&e| e <= bytes.len())
-            .ok_or_else(|| {
-                bad(format!(
-                    "truncated chunk `{}`",
-                    String::from_utf8_lossy(kind)
-                ))
-            })?;
-        let data = &bytes[pos + 8..pos + 8 + len];
-        let crc = u32::from_be_bytes(bytes[end - 4..end].try_into().expect("4 bytes"));
-        let mut c = flate2::Crc::new();
-        c.update(kind);
-        c.update(data);
-        if c.sum() != crc {
-            return Err(bad(format!(
-                "checksum mismatch in chunk `{}` (corrupt file)",
-                String::from_utf8_lossy(kind)
-            )));
-        }
-        match kind {
-            b"IHDR" => {
-                if len != 13 {
-                    return Err(bad("bad IHDR chunk".into()));
-                }
-                ihdr = Some(data.try_into().expect("13 bytes"));
-            }
-            b"IDAT" => idat.extend_from_slice(data),
-            b"IEND" => {
-                ended = true;
-                break;
-            }
-            _ => {}
-        }
-        pos = end;
-    }
-    let h = ihdr.ok_or_else(|| bad("no IHDR chunk".into()))?;
-    if !ended {
-        return Err(bad("no IEND chunk (truncated file)".into()));
-    }
-    let w = u32::from_be_bytes(h[0..4].try_into().expect("4")) as usize;
-    let ht = u32::from_be_bytes(h[4..8].try_into().expect("4")) as usize;
-    let (depth, color, interlace) = (h[8] as usize, h[9], h[12]);
+    let mut options = png::DecodeOptions::default();
+    options.set_ignore_adler32(false);
+    let mut decoder = png::Decoder::new_with_options(std::io::Cursor::new(bytes), options);
+    // sizes are checked below; the buffer is filled only as far as data is there
+    decoder.set_limits(png::Limits { bytes: usize::MAX });
+    decoder.set_transformations(png::Transformations::IDENTITY);
+    let mut reader = decoder.read_info().map_err(png_error)?;
+    let info = reader.info();
+    let (w, ht) = (info.width as usize, info.height as usize);
+    let (color, depth) = (info.color_type, info.bit_depth);
     if w == 0 || ht == 0 {
         return Err(bad(format!("an image of {w} × {ht} pixels has no pixels")));
     }
     if w.checked_mul(ht).is_none_or(|n| n > 1 << 31) {
         return Err(bad(format!("{w} × {ht} pixels is too large")));
     }
-    if interlace != 0 {
-        return Err(bad(
-            "interlaced PNG is not supported (save it without interlacing)".into(),
-        ));
-    }
-    let (channels, dtype) = match (color, depth) {
-        (0, 1 | 2 | 4 | 8 | 16) => (1, if depth == 16 { "uint16" } else { "uint8" }),
-        (3, 1 | 2 | 4 | 8) => (1, "palette"),
-        (4, 8 | 16) => (2, if depth == 16 { "uint16" } else { "uint8" }),
-        (2 | 6, _) => {
-            return Err(bad(
-                "is a color (RGB) PNG: DICONEX needs one value per pixel; convert it to grayscale (or a palette/label image) first".into(),
-            ));
-        }
-        _ => {
-            return Err(bad(format!(
-                "bad PNG color type {color} with bit depth {depth}"
-            )));
+    let channels = color.samples();
+    let dtype = match (color, depth) {
+        (ColorType::Indexed, _) => "palette",
+        (_, BitDepth::Sixteen) => "uint16",
+        _ => "uint8",
+    };
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| bad(format!("{w} × {ht} pixels is too large")))?;
+    let mut buf = vec![0u8; size];
+    let out = reader.next_frame(&mut buf).map_err(png_error)?;
+    reader.finish().map_err(png_error)?;
+    let depth = depth as usize;
+    let stride = out.line_size;
+    // sample `c` of pixel `i` in row `j`
+    let sample = |i: usize, j: usize, c: usize| -> u16 {
+        let row = &buf[j * stride..(j + 1) * stride];
+        let k = i * channels + c;
+        match depth {
+            16 => u16::from_be_bytes([row[2 * k], row[2 * k + 1]]),
+            8 => row[k] as u16,
+            _ => {
+                let bit = k * depth;
+                ((row[bit / 8] >> (8 - depth - bit % 8)) & ((1 << depth) - 1) as u8) as u16
+            }
         }
     };
-    let bits = depth * channels;
-    let stride = (w * bits).div_ceil(8);
-    let bpp = bits.div_ceil(8).max(1);
-    let mut raw = Vec::with_capacity((stride + 1) * ht);
-    flate2::read::ZlibDecoder::new(&idat[..])
-        .take(((stride + 1) * ht) as u64 + 1)
-        .read_to_end(&mut raw)
-        .map_err(|e| bad(format!("corrupt image data: {e}")))?;
-    if raw.len() < (stride + 1) * ht {
-        return Err(bad(format!(
-            "truncated image data: {} of {} bytes",
-            raw.len(),
-            (stride + 1) * ht
-        )));
-    }
-    let mut prev = vec![0u8; stride];
-    let mut cur = vec![0u8; stride];
+    let rgb = matches!(color, ColorType::Rgb | ColorType::Rgba);
     let mut values = Vec::with_capacity(w * ht);
     for j in 0..ht {
-        let line = &raw[j * (stride + 1)..(j + 1) * (stride + 1)];
-        let filter = line[0];
-        cur.copy_from_slice(&line[1..]);
-        unfilter(filter, &mut cur, &prev, bpp).map_err(|m| bad(format!("row {j}: {m}")))?;
         for i in 0..w {
-            let x = if depth < 8 {
-                let bit = i * depth;
-                (cur[bit / 8] >> (8 - depth - bit % 8)) & ((1 << depth) - 1) as u8
-            } else if depth == 8 {
-                cur[i * channels]
-            } else {
-                let k = 2 * i * channels;
-                values.push(u16::from_be_bytes([cur[k], cur[k + 1]]) as f64);
-                continue;
-            };
+            let x = sample(i, j, 0);
+            if rgb && (sample(i, j, 1) != x || sample(i, j, 2) != x) {
+                return Err(bad(format!(
+                    "is a color (RGB) PNG (pixel ({i}, {j}) is not gray): DICONEX needs one value per pixel; convert it to grayscale (or a palette/label image) first"
+                )));
+            }
             values.push(x as f64);
         }
-        std::mem::swap(&mut prev, &mut cur);
     }
     Ok(Image2d {
         width: w,
@@ -472,89 +427,62 @@ pub fn parse_png(bytes: &[u8], path: &Path) -> Result<Image2d> {
     })
 }
 
-fn unfilter(
-    filter: u8,
-    cur: &mut [u8],
-    prev: &[u8],
-    bpp: usize,
-) -> std::result::Result<(), String> {
-    match filter {
-        0 => {}
-        1 => {
-            for k in bpp..cur.len() {
-                cur[k] = cur[k].wrapping_add(cur[k - bpp]);
-            }
-        }
-        2 => {
-            for k in 0..cur.len() {
-                cur[k] = cur[k].wrapping_add(prev[k]);
-            }
-        }
-        3 => {
-            for k in 0..cur.len() {
-                let left = if k >= bpp { cur[k - bpp] as u16 } else { 0 };
-                cur[k] = cur[k].wrapping_add(((left + prev[k] as u16) / 2) as u8);
-            }
-        }
-        4 => {
-            for k in 0..cur.len() {
-                let a = if k >= bpp { cur[k - bpp] as i16 } else { 0 };
-                let b = prev[k] as i16;
-                let c = if k >= bpp { prev[k - bpp] as i16 } else { 0 };
-                let p = a + b - c;
-                let (pa, pb, pc) = ((p - a).abs(), (p - b).abs(), (p - c).abs());
-                let pred = if pa <= pb && pa <= pc {
-                    a
-                } else if pb <= pc {
-                    b
-                } else {
-                    c
-                };
-                cur[k] = cur[k].wrapping_add(pred as u8);
-            }
-        }
-        f => return Err(format!("bad filter type {f}")),
+/// Encodes samples with the `png` crate: `channels` 1 (gray), 3 (RGB) or 4
+/// (RGBA) per pixel, x fastest, rows from the top; 8 bits, or 16 bits
+/// (big-endian pairs in `data`) with `sixteen`. Balanced compression with
+/// adaptive filters: meant for generated images (previews, tests).
+pub fn encode_png(
+    width: usize,
+    height: usize,
+    channels: usize,
+    sixteen: bool,
+    data: &[u8],
+) -> Result<Vec<u8>> {
+    let color = match channels {
+        1 => png::ColorType::Grayscale,
+        3 => png::ColorType::Rgb,
+        4 => png::ColorType::Rgba,
+        c => return Err(Error::invalid(format!("{c} channels: a PNG has 1, 3 or 4"))),
+    };
+    let bytes = width * height * channels * if sixteen { 2 } else { 1 };
+    if width == 0 || height == 0 || data.len() != bytes {
+        return Err(Error::invalid(format!(
+            "{} bytes for a PNG of {width} × {height} pixels and {channels} channels",
+            data.len()
+        )));
     }
-    Ok(())
+    let (w, h) = match (u32::try_from(width), u32::try_from(height)) {
+        (Ok(w), Ok(h)) => (w, h),
+        _ => {
+            return Err(Error::invalid(format!(
+                "{width} × {height} pixels is too large for a PNG"
+            )));
+        }
+    };
+    let mut out = Vec::new();
+    let mut e = png::Encoder::new(&mut out, w, h);
+    e.set_color(color);
+    e.set_depth(if sixteen {
+        png::BitDepth::Sixteen
+    } else {
+        png::BitDepth::Eight
+    });
+    e.set_compression(png::Compression::Balanced);
+    let encoded = e
+        .write_header()
+        .and_then(|mut wr| wr.write_image_data(data).and_then(|()| wr.finish()));
+    encoded.map_err(|e| Error::invalid(format!("encoding a PNG: {e}")))?;
+    Ok(out)
 }
 
-/// Encodes 8- or 16-bit grayscale samples as a PNG (no filtering), for tests
-/// and examples.
+/// Encodes 8- or 16-bit grayscale samples as a PNG, for tests and examples.
 pub fn encode_png_gray(width: usize, height: usize, values: &[u16], sixteen: bool) -> Vec<u8> {
-    use std::io::Write;
-    let mut raw = Vec::new();
-    for j in 0..height {
-        raw.push(0);
-        for i in 0..width {
-            let x = values[i + width * j];
-            if sixteen {
-                raw.extend_from_slice(&x.to_be_bytes());
-            } else {
-                raw.push(x as u8);
-            }
-        }
-    }
-    let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
-    z.write_all(&raw).expect("in memory");
-    let idat = z.finish().expect("in memory");
-    let mut out = PNG_SIGNATURE.to_vec();
-    let mut chunk = |kind: &[u8], data: &[u8]| {
-        out.extend_from_slice(&(data.len() as u32).to_be_bytes());
-        out.extend_from_slice(kind);
-        out.extend_from_slice(data);
-        let mut c = flate2::Crc::new();
-        c.update(kind);
-        c.update(data);
-        out.extend_from_slice(&c.sum().to_be_bytes());
+    let data: Vec<u8> = if sixteen {
+        values.iter().flat_map(|x| x.to_be_bytes()).collect()
+    } else {
+        values.iter().map(|&x| x as u8).collect()
     };
-    let mut ihdr = Vec::new();
-    ihdr.extend_from_slice(&(width as u32).to_be_bytes());
-    ihdr.extend_from_slice(&(height as u32).to_be_bytes());
-    ihdr.extend_from_slice(&[if sixteen { 16 } else { 8 }, 0, 0, 0, 0]);
-    chunk(b"IHDR", &ihdr);
-    chunk(b"IDAT", &idat);
-    chunk(b"IEND", &[]);
-    out
+    encode_png(width, height, 1, sixteen, &data).expect("a gray image of width × height samples")
 }
 
 #[cfg(test)]
@@ -627,17 +555,77 @@ mod tests {
     }
 
     #[test]
-    fn png_filters_are_undone() {
-        // a 3 × 2 8-bit image with Sub on row 0 and Paeth on row 1
-        let rows = [[1u8, 10, 20, 30], [4, 5, 5, 5]];
-        let mut cur = rows[0][1..].to_vec();
-        unfilter(rows[0][0], &mut cur, &[0, 0, 0], 1).unwrap();
-        assert_eq!(cur, [10, 30, 60]);
-        let prev = cur.clone();
-        let mut cur = rows[1][1..].to_vec();
-        unfilter(rows[1][0], &mut cur, &prev, 1).unwrap();
-        // Paeth predictors: 10 (b), then 30 (b: p = 15 + 30 − 10), then 60 (b)
-        assert_eq!(cur, [15, 35, 65]);
-        assert!(unfilter(9, &mut cur, &prev, 1).is_err());
+    fn png_formats_the_old_decoder_refused_are_read() {
+        let p = Path::new("x.png");
+        // RGB with R = G = B everywhere (gray saved as color), written by the crate
+        let v: Vec<u8> = (0..12).map(|k| (k * 20) as u8).collect();
+        let rgb: Vec<u8> = v.iter().flat_map(|&x| [x, x, x]).collect();
+        let img = parse_png(&encode_png(4, 3, 3, false, &rgb).unwrap(), p).unwrap();
+        assert_eq!((img.width, img.height), (4, 3));
+        assert_eq!(img.values, v.iter().map(|&x| x as f64).collect::<Vec<_>>());
+        // real color is still refused, naming the pixel
+        let mut color = rgb.clone();
+        color[3 * 5 + 1] ^= 1;
+        let e = parse_png(&encode_png(4, 3, 3, false, &color).unwrap(), p).unwrap_err();
+        assert!(e.to_string().contains("(1, 1)"), "{e}");
+        // an interlaced (Adam7) 2 × 2 image: pass 1 holds (0, 0), pass 6
+        // (1, 0), pass 7 the second row
+        use std::io::Write;
+        let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+        z.write_all(&[0, 10, 0, 20, 0, 30, 40]).unwrap();
+        let idat = z.finish().unwrap();
+        let mut file = PNG_SIGNATURE.to_vec();
+        let mut chunk = |kind: &[u8], data: &[u8]| {
+            file.extend_from_slice(&(data.len() as u32).to_be_bytes());
+            file.extend_from_slice(kind);
+            file.extend_from_slice(data);
+            let mut c = flate2::Crc::new();
+            c.update(kind);
+            c.update(data);
+            file.extend_from_slice(&c.sum().to_be_bytes());
+        };
+        chunk(b"IHDR", &[0, 0, 0, 2, 0, 0, 0, 2, 8, 0, 0, 0, 1]);
+        chunk(b"IDAT", &idat);
+        chunk(b"IEND", &[]);
+        let img = parse_png(&file, p).unwrap();
+        assert_eq!(img.values, [10.0, 20.0, 30.0, 40.0]);
+    }
+
+    #[test]
+    fn png_bit_depths_and_palettes_keep_their_raw_values() {
+        let p = Path::new("x.png");
+        // a 1-bit gray and a 4-bit palette image: values are the samples, not scaled
+        for (color, depth, palette) in [
+            (png::ColorType::Grayscale, png::BitDepth::One, false),
+            (png::ColorType::Indexed, png::BitDepth::Four, true),
+        ] {
+            let (w, h) = (5u32, 2u32);
+            let bits = depth as usize;
+            let max = (1u16 << bits) - 1;
+            let vals: Vec<u16> = (0..10).map(|k| (k * 7 % 11) as u16 % (max + 1)).collect();
+            let stride = (w as usize * bits).div_ceil(8);
+            let mut data = vec![0u8; stride * h as usize];
+            for (k, &x) in vals.iter().enumerate() {
+                let (i, j) = (k % w as usize, k / w as usize);
+                let bit = i * bits;
+                data[j * stride + bit / 8] |= (x as u8) << (8 - bits - bit % 8);
+            }
+            let mut out = Vec::new();
+            let mut e = png::Encoder::new(&mut out, w, h);
+            e.set_color(color);
+            e.set_depth(depth);
+            if palette {
+                e.set_palette(vec![0u8; 3 * 16]);
+            }
+            let mut wr = e.write_header().unwrap();
+            wr.write_image_data(&data).unwrap();
+            wr.finish().unwrap();
+            let img = parse_png(&out, p).unwrap();
+            assert_eq!(
+                img.values,
+                vals.iter().map(|&x| x as f64).collect::<Vec<_>>()
+            );
+            assert_eq!(img.dtype, if palette { "palette" } else { "uint8" });
+        }
     }
 }

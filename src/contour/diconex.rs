@@ -26,7 +26,7 @@
 //! **Coordinates and orientation.** Points are in pixel index coordinates:
 //! pixel `(i, j)` (sample `i + width · j`) has its centre at `(i, j)`. For a
 //! slice of a volume the two axes are the volume's other two axes in
-//! increasing order (see [`super::image2d`]). Counter-clockwise means positive
+//! increasing order (see [`crate::io::image2d`]). Counter-clockwise means positive
 //! signed area in these coordinates (the active region on the left when the
 //! y axis points up; drawn with rows going down, as in image viewers and
 //! SVG, it appears clockwise).
@@ -37,9 +37,8 @@
 
 use glam::DVec2;
 
-use super::grid::interpolation_fraction;
-use super::{Mode, Scalar};
 use crate::error::{Error, Result};
+use crate::iso::{Mode, Scalar, interpolation_fraction};
 
 /// Options of [`iso_contours`].
 #[derive(Clone, Copy, Debug, PartialEq)]
