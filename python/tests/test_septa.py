@@ -256,13 +256,13 @@ def test_readme_install_command_is_the_one_ci_runs():
     assert "python -m pip install ./python" in (ROOT / ".ci" / "run").read_text()
 
 
-def ras_voxel_offsets(vertices, affine, labels, pair_labels):
+def ras_voxel_offsets(vertices, affine, labels, pair_labels, outside=0):
     """For each vertex (RAS mm), the distance in voxels (per axis, largest) to the
     nearest voxel centre of each label of its triangle's patch, by nibabel's affine."""
     nib = pytest.importorskip("nibabel")
-    # outside the volume is label 0 (the config's outside): pad by a voxel
+    # outside the volume is the outside label: pad by a voxel
     index = nib.affines.apply_affine(np.linalg.inv(affine), vertices) + 1
-    labels = np.pad(labels, 1, constant_values=0)
+    labels = np.pad(labels, 1, constant_values=outside)
     worst = np.zeros(len(vertices))
     shape = np.array(labels.shape)
     for tri_vertices, (a, b) in pair_labels:
@@ -312,6 +312,38 @@ def test_cli_space_ras_overlays_nibabels_voxel_centres(tmp_path):
     # the same from Python, space="ras"
     m = septa.extract(labels, affine=img.affine, config=HEART, remesh=False)
     assert np.allclose(m.vertices, ply["vertices"], atol=1e-4)
+
+
+def test_cli_space_ras_overlays_nibabels_voxel_centres_on_a_real_head(tmp_path):
+    """The shipped ITK k-means head (LSA orientation, 2 x 2 x 3 mm, air is label 1):
+    a permuted, flipped, anisotropic grid, the case where a wrong axis shows."""
+    nib = pytest.importorskip("nibabel")
+    binary = septa_binary()
+    if binary is None:
+        pytest.skip("no septa binary (set SEPTA_BIN or build with cargo build)")
+    head = ROOT / "data" / "itk_kmeans_head.nii.gz"
+    out = tmp_path / "head"
+    subprocess.run(
+        [binary, "-q", "extract", str(head), "-o", str(out), "--space", "ras", "--no-remesh", "--no-preview"],
+        check=True,
+    )
+    manifest = json.loads((out / "manifest.json").read_text())
+    ply = septa._septa.read_mesh(str(out / "interfaces.ply"))
+    img = nib.load(head)
+    assert nib.aff2axcodes(img.affine) != ("R", "A", "S")
+    labels = np.asarray(img.dataobj).astype(np.int64)
+    values = [entry["value"] for entry in manifest["labels"]]
+    assert values == list(range(len(values)))  # label ids are the values here
+    rng = np.random.default_rng(2)
+    sample = rng.choice(len(ply["triangles"]), size=1500, replace=False)
+    pairs = [(ply["triangles"][t], ply["labels"][t]) for t in sample]
+    worst = ras_voxel_offsets(ply["vertices"], img.affine, labels, pairs, outside=manifest["parameters"]["outside"])
+    used = np.unique(ply["triangles"][sample])
+    index = nib.affines.apply_affine(np.linalg.inv(img.affine), ply["vertices"][used])
+    on_grid = (np.abs(index * 2 - np.round(index * 2)) < 1e-3).all(axis=1)
+    assert on_grid.sum() > 100
+    assert worst[used][on_grid].max() <= 0.5 + 1e-3
+    assert worst[used].max() < 1.0
 
 
 # ---- labels, per-label files, iso, hyper, check in memory ----
