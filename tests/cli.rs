@@ -1041,6 +1041,28 @@ fn check_on_a_patch_file_checks_it_as_an_open_patch() {
     assert!(!stdout(&whole).contains("open by design"));
 }
 
+#[test]
+fn check_on_a_label_file_checks_that_label_s_closed_surface() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    extract_heart(&out, &["--per-label", "ply"]);
+    let file = out.join("labels/myocardium.ply");
+    let o = septa(["check", p(&file)]);
+    // its neighbours' surfaces are open here: checked as the one label's surface
+    assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("closed surface of label"),
+        "{}",
+        stdout(&o)
+    );
+    assert!(
+        stdout(&o).contains("label surfaces closed        ok"),
+        "{}",
+        stdout(&o)
+    );
+    assert!(stderr(&o).is_empty(), "{}", stderr(&o));
+}
+
 /// `--surface faces` encloses exactly the voxels of each label when nothing is
 /// refined: the validator's volume of each (bounded) label surface is the voxel
 /// count times the voxel volume, to rounding.

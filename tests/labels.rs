@@ -12,7 +12,7 @@ use septa::io::label_files::LabelFormats;
 use septa::io::mesh_ply::{mesh_from_arrays, read_ply};
 use septa::labels::LabelSelection;
 use septa::mesh::InterfaceMesh;
-use septa::mesh::validate::{Options, validate};
+use septa::mesh::validate::{Options, validate, validate_label_surface};
 use septa::output::{Formats, OutDir, write_outdir};
 use septa::pipeline::{PipelineOptions, PipelineResult, run};
 use septa::volume::{Dims, Geometry, LabelVolume};
@@ -150,6 +150,24 @@ fn per_label_files_in_every_format_are_closed_surfaces() {
             .value;
         let ply = read_ply(&out.join(format!("labels/{name}.ply"))).unwrap();
         assert_closed(&as_one_surface(&ply.mesh, value), name);
+        // the header marks it as that label's surface, and the library checks it so
+        assert_eq!(ply.surface_of, Some(value), "{name}");
+        assert!(ply.notes.is_empty(), "{name}: {:?}", ply.notes);
+        let id = ply
+            .mesh
+            .labels
+            .iter()
+            .position(|l| l.value == value)
+            .unwrap() as septa::volume::LabelId;
+        let options = Options::default();
+        let report = validate_label_surface(&ply.mesh, id, &options).unwrap();
+        assert!(report.passed(), "{name}: {}", report.summary());
+        // ... which sees a hole: one triangle less is an open surface
+        let mut holed = ply.mesh.clone();
+        holed.triangles.pop();
+        holed.triangle_patch.pop();
+        let report = validate_label_surface(&holed, id, &options).unwrap();
+        assert!(!report.passed(), "{name}: a hole passed");
         // the file names the label and its neighbours, and nothing else
         let vtp = std::fs::read_to_string(out.join(format!("labels/{name}.vtp"))).unwrap();
         assert!(

@@ -10,7 +10,8 @@ use super::ui::{Ui, secs};
 use septa::Result;
 use septa::io::mesh_ply::read_ply;
 use septa::mesh::quality::{QualityOptions, quality};
-use septa::mesh::validate::{Check, Options, validate, validate_patch};
+use septa::mesh::validate::{Check, Options, validate, validate_label_surface, validate_patch};
+use septa::volume::LabelId;
 
 #[derive(Args, Debug)]
 pub struct CheckArgs {
@@ -61,7 +62,16 @@ pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
     };
     // a patch file (its vertices carry `vid`) is one open patch by design
     let patch_file = ply.vertex_ids.is_some() && ply.mesh.patches.len() == 1;
-    let mut report = if patch_file {
+    // a label file (`labels/NAME.ply`) is that label's closed surface, its
+    // neighbours' surfaces open by design
+    let label_surface = ply.surface_of.and_then(|value| {
+        let id = ply.mesh.labels.iter().position(|l| l.value == value)?;
+        validate_label_surface(&ply.mesh, id as LabelId, &options).map(|r| (value, r))
+    });
+    let label_file = label_surface.as_ref().map(|(value, _)| *value);
+    let mut report = if let Some((_, report)) = label_surface {
+        report
+    } else if patch_file {
         validate_patch(&ply.mesh, &options)
     } else {
         validate(&ply.mesh, &options)
@@ -90,7 +100,7 @@ pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
         None
     };
     if args.json {
-        let mut j = serde_json::json!({"file": show(&args.mesh), "passed": report.passed(), "patch_file": patch_file, "report": report});
+        let mut j = serde_json::json!({"file": show(&args.mesh), "passed": report.passed(), "patch_file": patch_file, "surface_of_label": label_file, "report": report});
         if let Some(q) = &quality {
             j["quality"] = serde_json::to_value(q).expect("json");
         }
@@ -104,6 +114,13 @@ pub fn run(args: &CheckArgs, ui: &Ui) -> Result<ExitCode> {
         ));
         if patch_file {
             ui.say(PATCH_FILE_NOTE);
+        }
+        if let Some(value) = label_file {
+            ui.say(format!(
+                "the closed surface of label {value} (the file's header says so): checked as that \
+                 label's surface against its neighbours taken as one, whose own surfaces are open \
+                 here by design; check interfaces.ply for the whole mesh"
+            ));
         }
         ui.say(report.summary().trim_end());
         if !patch_file && !report.passed() && ply.vertex_ids.is_some() {

@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 
 use super::Space;
 use super::mesh_formats::{VtpEncoding, write_obj_in, write_stl_label_surface_in, write_vtp_in};
-use super::mesh_ply::write_ply_in;
+use super::mesh_ply::write_label_surface_ply_in;
 use crate::error::{Error, Result};
 use crate::mesh::InterfaceMesh;
 use crate::volume::LabelId;
@@ -100,7 +100,7 @@ pub fn write_label_surfaces_in(
 /// Writes one label's surface mesh (label 0 of `surface`) as `ext`.
 fn write_one(path: &Path, surface: &InterfaceMesh, ext: &str, space: Space) -> Result<()> {
     match ext {
-        "ply" => write_ply_in(path, surface, space),
+        "ply" => write_label_surface_ply_in(path, surface, space),
         "vtp" => write_vtp_in(path, surface, VtpEncoding::Base64, space),
         "obj" => write_obj_in(path, surface, space),
         _ => write_stl_label_surface_in(path, surface, 0 as LabelId, space),

@@ -401,12 +401,41 @@ pub fn write_ply(path: &Path, mesh: &InterfaceMesh) -> Result<()> {
 
 /// [`write_ply`] of a mesh whose positions are in `space` (the header says so).
 pub fn write_ply_in(path: &Path, mesh: &InterfaceMesh, space: Space) -> Result<()> {
+    write_ply_with(path, mesh, space, &[])
+}
+
+/// The comment that marks a file as one label's closed surface (see
+/// [`write_label_surface_ply_in`]), before the label's value.
+const SURFACE_OF: &str = "surface of label ";
+
+/// Like [`write_ply_in`] for one label's closed surface (label 0 of
+/// `surface`, as [`InterfaceMesh::label_surface_mesh`] gives it), with a
+/// `comment surface of label <value>` line: [`read_ply`] reports it in
+/// [`PlyMesh::surface_of`], so that `septa check` checks the file as that
+/// label's surface (its neighbours' surfaces are open there by design).
+pub fn write_label_surface_ply_in(
+    path: &Path,
+    surface: &InterfaceMesh,
+    space: Space,
+) -> Result<()> {
+    let Some(label) = surface.labels.first() else {
+        return Err(Error::invalid("a label surface needs its label"));
+    };
+    write_ply_with(
+        path,
+        surface,
+        space,
+        &[format!("{SURFACE_OF}{}", label.value)],
+    )
+}
+
+fn write_ply_with(path: &Path, mesh: &InterfaceMesh, space: Space, extra: &[String]) -> Result<()> {
     check_writable(mesh)?;
     let values = patch_values(mesh)?;
     let h = header(
         mesh,
         0..mesh.labels.len() as LabelId,
-        &[],
+        extra,
         vec![
             vertex_element(mesh.vertex_count(), false),
             face_element(mesh.triangle_count()),
@@ -670,6 +699,9 @@ pub struct PlyMesh {
     pub mesh: InterfaceMesh,
     /// The `vid` vertex property, when the file has one (per-patch files).
     pub vertex_ids: Option<Vec<u32>>,
+    /// The label (by value) whose closed surface the file holds, when its
+    /// header says so (`labels/NAME.ply`: a `comment surface of label V`).
+    pub surface_of: Option<i64>,
     /// What the reader had to assume or skip, for the user.
     pub notes: Vec<String>,
     /// Faces of the file with fewer than three vertices (skipped), by index.
@@ -1190,7 +1222,13 @@ fn build(
             tris.skipped.len()
         ));
     }
-    if tris.swapped > 0 {
+    let surface_of = h.comments.iter().find_map(|c| {
+        c.trim()
+            .strip_prefix(SURFACE_OF)
+            .and_then(|v| v.trim().parse::<i64>().ok())
+    });
+    // a label's surface has that label first on every face, by design
+    if tris.swapped > 0 && surface_of.is_none() {
         notes.push(format!(
             "{} faces had label_a > label_b: swapped the labels and reversed the faces",
             tris.swapped
@@ -1209,6 +1247,7 @@ fn build(
     Ok(PlyMesh {
         mesh,
         vertex_ids,
+        surface_of,
         notes,
         short_faces: tris.skipped,
     })

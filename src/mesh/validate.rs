@@ -179,6 +179,43 @@ pub fn validate(mesh: &InterfaceMesh, opts: &Options) -> Report {
     report
 }
 
+/// Validates a file holding one label's closed surface (`labels/NAME.ply`):
+/// the patches between `label` and each neighbour, whose own surfaces are
+/// open there by design. The neighbours are taken as one label ("the
+/// rest"), and the result is validated like any mesh: `label`'s surface
+/// closed, manifold, oriented and facing away from it. `None` if some
+/// triangle does not border `label`.
+pub fn validate_label_surface(
+    mesh: &InterfaceMesh,
+    label: LabelId,
+    opts: &Options,
+) -> Option<Report> {
+    let mut triangles = mesh.triangles.clone();
+    for (t, &p) in triangles.iter_mut().zip(&mesh.triangle_patch) {
+        let [a, b] = mesh.patches.get(p as usize)?.labels;
+        if b == label {
+            // oriented from a to b: from the rest to `label`, so turn it
+            t.swap(1, 2);
+        } else if a != label {
+            return None;
+        }
+    }
+    let rest = crate::mesh::LabelInfo {
+        value: mesh.labels.iter().map(|l| l.value).max().unwrap_or(0) + 1,
+        name: "(its neighbours)".into(),
+    };
+    let merged = InterfaceMesh {
+        positions: mesh.positions.clone(),
+        triangles,
+        triangle_patch: vec![0; mesh.triangles.len()],
+        patches: vec![crate::mesh::Patch { labels: [0, 1] }],
+        junctions: Vec::new(),
+        labels: vec![mesh.labels.get(label as usize)?.clone(), rest],
+        geometry: mesh.geometry,
+    };
+    Some(validate(&merged, opts))
+}
+
 /// Checks one patch on its own (a patch file): what holds for a patch —
 /// the vertex pool, no degenerate triangles, and that it is a subset of an
 /// oriented 2-manifold (every edge in at most two triangles, of opposite
