@@ -212,6 +212,31 @@ def septa_binary():
     return None
 
 
+def test_vtk_and_trimesh_read_the_outputs_with_labels_and_lines(tmp_path):
+    """What users open: interfaces.vtp with its label arrays and junctions.vtp
+    with lines in VTK (pyvista), junctions.ply as a path in trimesh."""
+    pv = pytest.importorskip("pyvista")
+    trimesh = pytest.importorskip("trimesh")
+    pytest.importorskip("scipy")  # trimesh reads edge lists as paths with it
+    binary = septa_binary()
+    if binary is None:
+        pytest.skip("no septa binary (set SEPTA_BIN or build with cargo build)")
+    out = tmp_path / "out"
+    subprocess.run([binary, "-q", "extract", str(PHANTOM), "-c", str(HEART), "-o", str(out), "--no-remesh"], check=True)
+    manifest = json.loads((out / "manifest.json").read_text())
+    mesh = pv.read(out / "interfaces.vtp")
+    assert mesh.n_cells == manifest["triangles"]
+    values = {entry["value"] for entry in manifest["labels"]}
+    for name in ("label_a", "label_b"):
+        assert set(np.unique(mesh.cell_data[name])) <= values
+    assert (mesh.cell_data["label_a"] < mesh.cell_data["label_b"]).all()
+    junctions = pv.read(out / "junctions.vtp")
+    curves = len(manifest["junction_curves"])
+    assert junctions.n_lines == curves > 0
+    path = trimesh.load(out / "junctions.ply")
+    assert len(path.entities) >= curves
+
+
 def test_phantom_gives_the_same_triangles_as_the_cli(tmp_path):
     binary = septa_binary()
     if binary is None:
