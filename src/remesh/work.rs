@@ -777,7 +777,43 @@ fn splice(cv: &[u32], closed: bool, runs: Vec<RunResult>) -> Vec<u32> {
 
 #[cfg(test)]
 mod tests {
-    use super::{RunResult, splice};
+    use super::{NEW, Outcome, RunResult, Work, splice};
+    use crate::remesh::network::VertexKind;
+    use glam::DVec3;
+
+    /// A block's outcome that made two vertices, the second of them taken
+    /// away again in the same pass (a curve vertex split, then collapsed):
+    /// the merged mesh must not keep it as an unused vertex.
+    #[test]
+    fn a_vertex_made_and_removed_in_one_pass_is_not_kept() {
+        let p = |x: f64, y: f64| DVec3::new(x, y, 0.0);
+        let mut work = Work {
+            pos: vec![p(0.0, 0.0), p(1.0, 0.0), p(0.0, 1.0)],
+            kind: vec![VertexKind::Interior; 3],
+            tris: vec![[0, 1, 2]],
+            patch: vec![0],
+            hint: vec![0],
+            kept: vec![true],
+            curves: Vec::new(),
+            closed: Vec::new(),
+        };
+        let outcome = Outcome {
+            stats: [0; 10],
+            moved: Vec::new(),
+            dead: Vec::new(),
+            made: vec![
+                (p(0.5, 0.0), VertexKind::Interior, true),
+                (p(0.25, 0.0), VertexKind::Interior, false),
+            ],
+            // the triangle split at the first made vertex
+            triangles: vec![([0, NEW, 2], 0, 0, false), ([NEW, 1, 2], 0, 0, false)],
+            runs: Vec::new(),
+        };
+        work.merge(&[0], &[0], vec![outcome]);
+        assert_eq!(work.pos.len(), 4);
+        assert_eq!(work.tris.len(), 2);
+        assert!(work.check().is_ok(), "{:?}", work.check());
+    }
 
     fn run(start: usize, edges: usize, whole: bool, vertices: Vec<u32>) -> RunResult {
         RunResult {
