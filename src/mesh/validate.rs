@@ -138,8 +138,10 @@ pub struct Options<'a> {
     pub fidelity: Option<(&'a RefinedVolume, f64)>,
 }
 
-/// Runs every check.
-pub fn validate(mesh: &InterfaceMesh, opts: &Options) -> Report {
+/// The checks every mesh gets first: indices in range and three distinct
+/// corners per triangle (`Err` with the report so far if either fails: the
+/// other checks assume both), then unused, duplicate and degenerate vertices.
+fn vertex_pool_checks(mesh: &InterfaceMesh) -> Result<Report, Report> {
     let mut report = Report {
         vertices: mesh.positions.len(),
         triangles: mesh.triangles.len(),
@@ -150,18 +152,26 @@ pub fn validate(mesh: &InterfaceMesh, opts: &Options) -> Report {
     let (indices_ok, index_check) = check_indices(mesh);
     report.checks.push(index_check);
     if !indices_ok {
-        return report;
+        return Err(report);
     }
-    // the local checks assume three distinct corners
     let corners = check_distinct_corners(mesh);
     let corners_ok = corners.failures == 0;
     report.checks.push(corners);
     if !corners_ok {
-        return report;
+        return Err(report);
     }
     report.checks.push(check_unused(mesh));
     report.checks.push(check_duplicates(mesh));
     report.checks.push(check_degenerate(mesh));
+    Ok(report)
+}
+
+/// Runs every check.
+pub fn validate(mesh: &InterfaceMesh, opts: &Options) -> Report {
+    let mut report = match vertex_pool_checks(mesh) {
+        Ok(report) => report,
+        Err(report) => return report,
+    };
     let stars = Stars::new(mesh);
     let local = check_local(mesh, &stars);
     let (orientation, labels) = check_component_orientation(mesh, &local.unions);
@@ -223,27 +233,10 @@ pub fn validate_label_surface(
 /// patch ends) — without the closed-surface checks, which a patch fails by
 /// design: its boundary is where it meets the other patches.
 pub fn validate_patch(mesh: &InterfaceMesh, opts: &Options) -> Report {
-    let mut report = Report {
-        vertices: mesh.positions.len(),
-        triangles: mesh.triangles.len(),
-        patches: mesh.patches.len(),
-        checks: Vec::new(),
-        labels: Vec::new(),
+    let mut report = match vertex_pool_checks(mesh) {
+        Ok(report) => report,
+        Err(report) => return report,
     };
-    let (indices_ok, index_check) = check_indices(mesh);
-    report.checks.push(index_check);
-    if !indices_ok {
-        return report;
-    }
-    let corners = check_distinct_corners(mesh);
-    let corners_ok = corners.failures == 0;
-    report.checks.push(corners);
-    if !corners_ok {
-        return report;
-    }
-    report.checks.push(check_unused(mesh));
-    report.checks.push(check_duplicates(mesh));
-    report.checks.push(check_degenerate(mesh));
     let (edges, fans) = check_open_manifold(mesh);
     report.checks.push(edges);
     report.checks.push(fans);
