@@ -256,7 +256,7 @@ pub fn run(
                 Some(&extracted),
                 &QualityOptions {
                     target_edge_mm: params.target_edge,
-                    local: Some(&sizing),
+                    local: Some(&out.sizing),
                 },
             );
             timings.push(timer.done(progress));

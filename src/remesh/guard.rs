@@ -191,21 +191,30 @@ impl Level {
     }
 }
 
+/// The hot part of an entry (see [`Guard::slots`]).
+#[derive(Clone, Copy)]
+struct Slot {
+    b: Box32,
+    next: u32,
+    seen: u32,
+}
+
 /// The loose grids of current triangles and obstacles.
 pub(super) struct Guard {
     lo: DVec3,
     levels: Vec<Level>,
     // per entry
-    next: Vec<u32>,
+    /// What a scan reads of each entry, side by side (one cache line holds
+    /// two): its box, the next entry on its list and the last query that
+    /// saw it.
+    slots: Vec<Slot>,
     prev: Vec<u32>,
     /// Level and cell of each listed entry (`NONE` cell: not listed).
     level_of: Vec<u8>,
     cell_of: Vec<u32>,
-    boxes: Vec<Box32>,
     /// The triangle of each entry as it was registered (faces change only
     /// after they are unregistered).
     tris: Vec<Tri>,
-    seen: Vec<u32>,
     /// Per patch and face: its entry (or [`NONE`]).
     entry: Vec<Vec<u32>>,
     query: u32,
@@ -263,13 +272,11 @@ impl Guard {
         let mut g = Guard {
             lo,
             levels,
-            next: Vec::new(),
+            slots: Vec::new(),
             prev: Vec::new(),
             level_of: Vec::new(),
             cell_of: Vec::new(),
-            boxes: Vec::new(),
             tris: Vec::new(),
-            seen: Vec::new(),
             entry: patches
                 .iter()
                 .map(|st| vec![NONE; st.mesh.face_slots()])
@@ -293,14 +300,16 @@ impl Guard {
 
     /// Lists a new entry for triangle `t`.
     fn add(&mut self, t: Tri) -> u32 {
-        let e = self.next.len() as u32;
-        self.next.push(NONE);
+        let e = self.slots.len() as u32;
+        self.slots.push(Slot {
+            b: t.box32(),
+            next: NONE,
+            seen: 0,
+        });
         self.prev.push(NONE);
         self.level_of.push(0);
         self.cell_of.push(NONE);
-        self.boxes.push(t.box32());
         self.tris.push(t);
-        self.seen.push(0);
         self.link(e, t);
         e
     }
@@ -324,14 +333,14 @@ impl Guard {
         let first = l.head[c as usize];
         l.head[c as usize] = e;
         l.count += 1;
-        self.next[e as usize] = first;
+        self.slots[e as usize].next = first;
         self.prev[e as usize] = NONE;
         if first != NONE {
             self.prev[first as usize] = e;
         }
         self.level_of[e as usize] = level as u8;
         self.cell_of[e as usize] = c;
-        self.boxes[e as usize] = Box32::outward(b.0, b.1);
+        self.slots[e as usize].b = Box32::outward(b.0, b.1);
         self.tris[e as usize] = t;
     }
 
@@ -342,9 +351,9 @@ impl Guard {
             return;
         }
         let l = &mut self.levels[self.level_of[e as usize] as usize];
-        let (n, p) = (self.next[e as usize], self.prev[e as usize]);
+        let (n, p) = (self.slots[e as usize].next, self.prev[e as usize]);
         if p != NONE {
-            self.next[p as usize] = n;
+            self.slots[p as usize].next = n;
         } else {
             l.head[c as usize] = n;
         }
@@ -413,14 +422,14 @@ impl Guard {
         }
         self.query = self.query.wrapping_add(1);
         if self.query == 0 {
-            self.seen.fill(0);
+            self.slots.iter_mut().for_each(|s| s.seen = 0);
             self.query = 1;
         }
         let q = self.query;
         for &(p, f) in replaced {
             if let Some(&e) = self.entry[p as usize].get(f as usize) {
                 if e != NONE {
-                    self.seen[e as usize] = q;
+                    self.slots[e as usize].seen = q;
                 }
             }
         }
@@ -450,12 +459,13 @@ impl Guard {
                         let mut e = l.head[row + x];
                         while e != NONE {
                             let cur = e as usize;
-                            e = self.next[cur];
-                            if self.seen[cur] == q || !self.boxes[cur].overlaps(&query_box) {
+                            let slot = &self.slots[cur];
+                            e = slot.next;
+                            if slot.seen == q || !slot.b.overlaps(&query_box) {
                                 continue;
                             }
                             let t = &self.tris[cur];
-                            let tb = self.boxes[cur];
+                            let tb = slot.b;
                             if made.iter().zip(made_boxes).any(|(s, sb)| {
                                 sb.overlaps(&tb) && triangles_cross(&s.p, &s.k, &t.p, &t.k)
                             }) {

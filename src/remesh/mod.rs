@@ -47,6 +47,7 @@
 mod guard;
 pub mod halfedge;
 mod isotropic;
+mod junction_sizing;
 pub mod network;
 pub mod sizing;
 pub mod smooth;
@@ -234,6 +235,10 @@ pub struct Remeshed {
     pub mesh: InterfaceMesh,
     /// The smoothed extraction (the surface the remeshed vertices lie on).
     pub smoothed: InterfaceMesh,
+    /// The sizing field the remesher aimed at: the one given, lowered
+    /// near junction curves shorter than it or closer to
+    /// each other (see [`junction_sizing`]).
+    pub sizing: Sizing,
     /// Share of the output surface (by area) left as extracted: triangles no
     /// operation could change safely.
     pub kept_share: f64,
@@ -299,6 +304,7 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
         params.max_displacement,
     );
     timings.smooth = clock.elapsed().as_secs_f64();
+    let sizing = &sizing.limited(&junction_sizing::limits(&net, &smoothed_pos, sizing));
 
     let clock = std::time::Instant::now();
     let groups = mesh.patch_triangles();
@@ -424,6 +430,7 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
     Ok(Remeshed {
         mesh: out,
         smoothed,
+        sizing: sizing.clone(),
         kept_share: share(kept),
         island_share: share(islands),
         kept_vertices,

@@ -22,6 +22,10 @@
 //! 4. looked up by trilinear interpolation of the cell values and clamped to
 //!    [`Sizing::min`], [`Sizing::max`].
 //!
+//! The remesher then lowers it where the junction curves are finer than
+//! the target ([`Sizing::limited`], from [`super::junction_sizing`]): runs
+//! of curves shorter than it, and runs closer to each other than it.
+//!
 //! The remesher asks for h at an edge's midpoint ([`Sizing::edge`]); the
 //! quality report measures edges against the same field.
 
@@ -62,6 +66,8 @@ struct Field {
     cell: [usize; 3],
     /// Cells per axis (over the padded grid: voxel −1 to n).
     dims: [usize; 3],
+    /// Edge lengths of a cell along each index axis (mm), for the grading.
+    cell_len: [f64; 3],
     h: Vec<f32>,
 }
 
@@ -105,7 +111,47 @@ impl Sizing {
                 origin: DVec3::from(geometry.origin()),
                 cell,
                 dims,
+                cell_len,
                 h,
+            }),
+        }
+    }
+
+    /// This field with the target at each point `p` of `limits` at most its
+    /// `t` (mm; never below [`Sizing::min`]), graded again around them. The
+    /// remesher limits the target near junction curves shorter than it (see
+    /// [`super::junction_sizing`]). A uniform sizing stays uniform: it has no
+    /// field to lower.
+    pub fn limited(&self, limits: &[(DVec3, f64)]) -> Sizing {
+        let Some(field) = &self.field else {
+            return self.clone();
+        };
+        let mut h = field.h.clone();
+        let mut lowered = false;
+        for &(p, t) in limits {
+            if !(t < self.max) || !p.is_finite() {
+                continue;
+            }
+            let t = t.max(self.min) as f32;
+            // every cell of the interpolation stencil at p, so that h(p),
+            // a weighted mean of them, is at most t
+            let (i, [sx, sy, sz]) = field.stencil(p);
+            for o in [0, sx, sy, sy + sx, sz, sz + sx, sz + sy, sz + sy + sx] {
+                if t < h[i + o] {
+                    h[i + o] = t;
+                    lowered = true;
+                }
+            }
+        }
+        if !lowered {
+            return self.clone();
+        }
+        Sizing {
+            min: self.min,
+            max: self.max,
+            field: Some(Field {
+                h: graded(h, field.dims, field.cell_len),
+                ..field.clone()
             }),
         }
     }
@@ -143,8 +189,11 @@ impl crate::mesh::quality::TargetEdges for Sizing {
 }
 
 impl Field {
-    /// Trilinear interpolation of the cell values at `p` (LPS mm).
-    fn at(&self, p: DVec3) -> f64 {
+    /// The interpolation stencil at `p` (LPS mm): the index of its first
+    /// cell, the index steps to the next cell along each axis (0 along an
+    /// axis with one cell) and the fractions along each axis.
+    #[inline]
+    fn stencil_and_fractions(&self, p: DVec3) -> (usize, [usize; 3], [f64; 3]) {
         // padded voxel coordinates (voxel centres at integers, −1 → 0) in
         // cell units, with cell centres at integers
         let q = self.to_index * (p - self.origin);
@@ -160,8 +209,20 @@ impl Field {
         }
         let [nx, ny, _] = self.dims;
         let step = |a: usize| usize::from(self.dims[a] > 1);
-        let (sx, sy, sz) = (step(0), step(1) * nx, step(2) * nx * ny);
+        let steps = [step(0), step(1) * nx, step(2) * nx * ny];
         let i = base[0] + nx * (base[1] + ny * base[2]);
+        (i, steps, frac)
+    }
+
+    /// [`Field::stencil_and_fractions`] without the fractions.
+    fn stencil(&self, p: DVec3) -> (usize, [usize; 3]) {
+        let (i, steps, _) = self.stencil_and_fractions(p);
+        (i, steps)
+    }
+
+    /// Trilinear interpolation of the cell values at `p` (LPS mm).
+    fn at(&self, p: DVec3) -> f64 {
+        let (i, [sx, sy, sz], frac) = self.stencil_and_fractions(p);
         let v = |o: usize| self.h[i + o] as f64;
         let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
         let x0 = lerp(v(0), v(sx), frac[0]);
@@ -379,6 +440,32 @@ mod tests {
             assert!(h - prev <= GRADING * 1.0 + 1e-6, "step {k}: {prev} -> {h}");
             prev = h;
         }
+    }
+
+    #[test]
+    fn limits_lower_the_target_at_their_points_graded_around_them() {
+        // one label in a box: the thickness leaves the target alone inside
+        let (grid, g) = grid_of(
+            [40, 40, 40],
+            |x, y, z| i64::from([x, y, z].iter().all(|c| (2..38).contains(c))),
+            Geometry::identity(),
+        );
+        let s = Sizing::from_labels(&grid, &g, 0.5, 4.0);
+        let p = DVec3::splat(20.0);
+        assert_eq!(s.at(p), 4.0);
+        let l = s.limited(&[(p, 1.0), (DVec3::new(20.0, 20.0, 10.0), 0.1)]);
+        assert!(l.at(p) <= 1.0 + 1e-6, "at the limit: {}", l.at(p));
+        // never below the smallest target
+        assert!((l.at(DVec3::new(20.0, 20.0, 10.0)) - 0.5).abs() < 1e-6);
+        let mut prev = l.at(p);
+        for k in 1..=8 {
+            let h = l.at(p + DVec3::X * k as f64);
+            assert!(h - prev <= GRADING + 1e-6, "step {k}: {prev} -> {h}");
+            prev = h;
+        }
+        assert_eq!(l.at(DVec3::new(8.0, 30.0, 30.0)), 4.0, "far away");
+        // limits above the target change nothing
+        assert_eq!(s.limited(&[(p, 9.0)]).at(p), 4.0);
     }
 
     #[test]

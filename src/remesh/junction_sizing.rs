@@ -1,0 +1,296 @@
+//! The junction network's part of the sizing field: where the curves along
+//! which patches meet are finer than the target, the target comes down to
+//! them.
+//!
+//! A patch's triangles along a junction curve have one edge on the curve.
+//! Where a run of a curve (from corner to corner) is shorter than the target
+//! it stays one short edge; where two runs come closer than the target (a
+//! strip of patch between them) the triangles across the strip are as wide
+//! as the strip. Either way a target longer than the curves allow makes
+//! needles: on a low-resolution segmentation where many labels meet, most
+//! runs are shorter than the target. So, on the smoothed curves:
+//! - every point of a run gets the run's length as its limit (a third of it
+//!   for a closed curve without corners: three edges at least);
+//! - points along a run get the distance to the nearest run that shares no
+//!   corner with it (runs meeting at a corner come together there; that is
+//!   the corner's angle, not a gap).
+//!
+//! [`Sizing::limited`] takes these limits into the field and grades around
+//! them, so the targets beside short or close runs match them.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::network::{Network, VertexKind};
+use super::sizing::Sizing;
+use crate::geom::predicates::closest_on_segment;
+
+/// A run of a junction curve: its vertices from corner to corner (or a
+/// whole closed curve without corners, first vertex repeated at the end).
+struct Run {
+    vertices: Vec<u32>,
+    /// Its end corners (vertex ids); `None` for a closed curve without corners.
+    ends: Option<[u32; 2]>,
+}
+
+/// The runs of every curve of `net`.
+fn runs(net: &Network) -> Vec<Run> {
+    let corner = |v: u32| net.kind[v as usize] == VertexKind::Corner;
+    let mut runs = Vec::new();
+    for c in &net.curves {
+        let vs = &c.vertices;
+        if vs.len() < 2 {
+            continue;
+        }
+        let first_corner = vs.iter().position(|&v| corner(v));
+        let ring: Vec<u32> = match (c.closed, first_corner) {
+            (true, None) => {
+                let mut ring = vs.clone();
+                ring.push(vs[0]);
+                runs.push(Run {
+                    vertices: ring,
+                    ends: None,
+                });
+                continue;
+            }
+            // a closed curve through corners: its runs from a corner round
+            (true, Some(k)) => vs[k..].iter().chain(&vs[..=k]).copied().collect(),
+            (false, _) => vs.clone(),
+        };
+        let mut start = 0;
+        for i in 1..ring.len() {
+            if corner(ring[i]) || i + 1 == ring.len() {
+                let run = ring[start..=i].to_vec();
+                let ends = Some([run[0], run[run.len() - 1]]);
+                runs.push(Run {
+                    vertices: run,
+                    ends,
+                });
+                start = i;
+            }
+        }
+    }
+    runs
+}
+
+/// Points along a polyline about `step` apart: a vertex where it is at
+/// least `step` from the last point taken (with points between on a long
+/// stretch), and the last vertex.
+fn samples(points: impl Iterator<Item = DVec3>, step: f64) -> Vec<DVec3> {
+    let mut out: Vec<DVec3> = Vec::new();
+    let mut end = None;
+    for p in points {
+        end = Some(p);
+        let Some(&last) = out.last() else {
+            out.push(p);
+            continue;
+        };
+        let d = (p - last).length();
+        if d >= step {
+            let n = (d / step).floor().max(1.0) as usize;
+            out.extend((1..=n).map(|k| last + (p - last) * (k as f64 / n as f64)));
+        }
+    }
+    if let Some(p) = end {
+        if out.last() != Some(&p) {
+            out.push(p);
+        }
+    }
+    out
+}
+
+/// The limits (point, largest target there in mm) the junction network of
+/// `net` (at positions `pos`) sets on `sizing`; none where it leaves room
+/// for the target.
+pub(super) fn limits(net: &Network, pos: &[DVec3], sizing: &Sizing) -> Vec<(DVec3, f64)> {
+    let max = sizing.max();
+    let runs = runs(net);
+    let length = |r: &Run| -> f64 {
+        r.vertices
+            .windows(2)
+            .map(|w| (pos[w[1] as usize] - pos[w[0] as usize]).length())
+            .sum()
+    };
+    let by_length: Vec<f64> = runs
+        .par_iter()
+        .map(|r| {
+            let l = length(r);
+            if r.ends.is_none() { l / 3.0 } else { l }
+        })
+        .collect();
+    let mut limits: Vec<(DVec3, f64)> = Vec::new();
+    for (r, &t) in runs.iter().zip(&by_length) {
+        if t < max {
+            limits.extend(r.vertices.iter().map(|&v| (pos[v as usize], t)));
+        }
+    }
+    limits.extend(gap_limits(&runs, pos, &by_length, sizing));
+    limits
+}
+
+/// The distance from points along each run to the nearest run that shares
+/// no corner with it, where that is less than the run's other limit.
+fn gap_limits(
+    runs: &[Run],
+    pos: &[DVec3],
+    by_length: &[f64],
+    sizing: &Sizing,
+) -> Vec<(DVec3, f64)> {
+    let max = sizing.max();
+    // the runs resampled at a fraction of the smallest target: fewer
+    // segments than the extraction's fine chords, as close to the curves
+    // as the field can tell
+    let step = 0.5 * sizing.min();
+    let sampled: Vec<Vec<DVec3>> = runs
+        .par_iter()
+        .map(|r| samples(r.vertices.iter().map(|&v| pos[v as usize]), step))
+        .collect();
+    // segments binned by midpoint in cells of the largest query reach
+    let mut segs: Vec<(u32, DVec3, DVec3)> = Vec::new();
+    let mut longest = 0.0f64;
+    for (r, pts) in sampled.iter().enumerate() {
+        for w in pts.windows(2) {
+            segs.push((r as u32, w[0], w[1]));
+            longest = longest.max((w[1] - w[0]).length());
+        }
+    }
+    if segs.is_empty() {
+        return Vec::new();
+    }
+    let cell = max + 0.5 * longest;
+    let lo = segs
+        .iter()
+        .fold(DVec3::splat(f64::INFINITY), |lo, s| lo.min(s.1).min(s.2));
+    let key = |p: DVec3| -> [i64; 3] {
+        let q = (p - lo) / cell;
+        [q.x.floor() as i64, q.y.floor() as i64, q.z.floor() as i64]
+    };
+    let pack = |k: [i64; 3]| -> u64 {
+        // (cells along an axis: far fewer than 2^21 for any real volume)
+        let c = |x: i64| (x.clamp(0, (1 << 21) - 1)) as u64;
+        c(k[0]) | c(k[1]) << 21 | c(k[2]) << 42
+    };
+    let mut binned: Vec<(u64, u32)> = segs
+        .iter()
+        .enumerate()
+        .map(|(i, s)| (pack(key((s.1 + s.2) * 0.5)), i as u32))
+        .collect();
+    binned.par_sort_unstable();
+    let in_cell = |k: u64| -> &[(u64, u32)] {
+        let a = binned.partition_point(|e| e.0 < k);
+        let b = binned.partition_point(|e| e.0 <= k);
+        &binned[a..b]
+    };
+    let related = |r: usize, s: usize| {
+        r == s
+            || match (runs[r].ends, runs[s].ends) {
+                (Some(a), Some(b)) => a.iter().any(|x| b.contains(x)),
+                _ => false,
+            }
+    };
+    sampled
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(r, pts)| {
+            let reach = by_length[r].min(max);
+            let (segs, in_cell, related, key, pack) = (&segs, &in_cell, &related, &key, &pack);
+            pts.iter().filter_map(move |&p| {
+                let k = key(p);
+                let mut best = reach;
+                for dz in -1..=1 {
+                    for dy in -1..=1 {
+                        for dx in -1..=1 {
+                            let c = [k[0] + dx, k[1] + dy, k[2] + dz];
+                            if c.iter().any(|&x| x < 0) {
+                                continue;
+                            }
+                            for &(_, i) in in_cell(pack(c)) {
+                                let (s, a, b) = segs[i as usize];
+                                if related(r, s as usize) {
+                                    continue;
+                                }
+                                best = best.min((closest_on_segment(p, a, b) - p).length());
+                            }
+                        }
+                    }
+                }
+                (best < reach).then_some((p, best))
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::remesh::network::Curve;
+
+    /// A network of open curves given as point lists (their ends corners).
+    fn network(curves: &[Vec<DVec3>]) -> (Network, Vec<DVec3>) {
+        let mut pos = Vec::new();
+        let mut kind = Vec::new();
+        let mut out = Vec::new();
+        for c in curves {
+            let first = pos.len() as u32;
+            for (i, &p) in c.iter().enumerate() {
+                pos.push(p);
+                let end = i == 0 || i + 1 == c.len();
+                kind.push(if end {
+                    VertexKind::Corner
+                } else {
+                    VertexKind::Curve(out.len() as u32)
+                });
+            }
+            out.push(Curve {
+                vertices: (first..pos.len() as u32).collect(),
+                closed: false,
+            });
+        }
+        (Network { kind, curves: out }, pos)
+    }
+
+    fn line(from: DVec3, to: DVec3, n: usize) -> Vec<DVec3> {
+        (0..=n)
+            .map(|k| from + (to - from) * (k as f64 / n as f64))
+            .collect()
+    }
+
+    #[test]
+    fn a_short_run_limits_the_target_to_its_length() {
+        let (net, pos) = network(&[line(DVec3::ZERO, DVec3::X * 1.5, 3)]);
+        let l = limits(&net, &pos, &Sizing::uniform(4.0));
+        assert_eq!(l.len(), 4);
+        assert!(l.iter().all(|&(_, t)| (t - 1.5).abs() < 1e-12), "{l:?}");
+        // a long run sets no limit
+        let (net, pos) = network(&[line(DVec3::ZERO, DVec3::X * 30.0, 30)]);
+        assert!(limits(&net, &pos, &Sizing::uniform(4.0)).is_empty());
+    }
+
+    #[test]
+    fn two_runs_a_gap_apart_limit_the_target_to_the_gap() {
+        // two long parallel runs 1.2 mm apart, and a third 10 mm away
+        let (net, pos) = network(&[
+            line(DVec3::ZERO, DVec3::X * 30.0, 30),
+            line(DVec3::Y * 1.2, DVec3::new(30.0, 1.2, 0.0), 30),
+            line(DVec3::Z * 10.0, DVec3::new(30.0, 0.0, 10.0), 30),
+        ]);
+        let l = limits(&net, &pos, &Sizing::uniform(4.0).limited(&[]));
+        assert!(!l.is_empty());
+        for &(p, t) in &l {
+            assert!(p.z < 1.0, "the far run has room: {p:?}");
+            assert!((t - 1.2).abs() < 1e-9, "{p:?} {t}");
+        }
+    }
+
+    #[test]
+    fn runs_meeting_at_a_corner_are_no_gap() {
+        // a V: two runs from one corner, at 30°
+        let c = DVec3::ZERO;
+        let (a, b) = (DVec3::X * 20.0, DVec3::new(20.0 * 0.866, 10.0, 0.0));
+        let (mut net, pos) = network(&[line(c, a, 20), line(c, b, 20)]);
+        // (one corner shared: the second run starts at the first's start)
+        let shared = net.curves[0].vertices[0];
+        net.curves[1].vertices[0] = shared;
+        assert!(limits(&net, &pos, &Sizing::uniform(4.0)).is_empty());
+    }
+}
