@@ -11,6 +11,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::coarse_faces::CoarseFaces;
+use super::dissolve;
 use super::lattice::Lattice;
 use super::vesta::{TAG_CENTROID, TAG_KEY, TAG_MASK};
 use super::{Chord, Part};
@@ -139,6 +140,23 @@ pub(crate) fn assemble(
         })
         .collect();
 
+    let junctions = chain_junctions(positions.len(), &chords);
+    // exact lattice coordinates: coarse face centres from their (exact)
+    // index positions, lattice points from their keys, centroids none
+    let two_s = 2.0 * lat.s as f64;
+    let lattice: Vec<Option<[i32; 3]>> = (0..positions.len())
+        .map(|v| {
+            if v < n_face {
+                let p = (positions[v] + DVec3::splat(1.5)) * two_s;
+                Some(p.round().to_array().map(|c| c as i32))
+            } else if v < n_face + keys.len() {
+                Some(lat.unpack(keys[v - n_face]))
+            } else {
+                None
+            }
+        })
+        .collect();
+    dissolve::dissolve_straight(&lattice, &mut triangles, &mut triangle_patch, &junctions);
     let positions: Vec<DVec3> = positions
         .par_iter()
         .map(|&p| geometry.index_to_physical(p))
@@ -148,11 +166,10 @@ pub(crate) fn assemble(
         triangles,
         triangle_patch,
         patches,
-        junctions: Vec::new(),
+        junctions,
         labels,
         geometry,
     };
-    mesh.junctions = chain_junctions(mesh.positions.len(), &chords);
     compact_unused(&mut mesh);
     mesh
 }
@@ -262,7 +279,8 @@ pub(crate) fn chain_junctions(
     curves
 }
 
-/// Removes vertices no triangle uses (none are expected; kept for robustness).
+/// Removes vertices no triangle uses (those the straight-segment dissolution
+/// took away) from the positions and the junction curves.
 fn compact_unused(mesh: &mut InterfaceMesh) {
     let n = mesh.positions.len();
     let mut used = vec![false; n];

@@ -33,6 +33,7 @@
 
 mod assemble;
 mod coarse_faces;
+mod dissolve;
 mod lattice;
 mod polygon;
 mod primal;

@@ -1,0 +1,364 @@
+//! Dissolving vertices that lie inside a straight segment of the surface.
+//!
+//! Along a straight junction line, and along the straight borders of the
+//! merged rectangles of refined voxels, the VESTA construction puts a vertex
+//! at every fine grid vertex and fine edge midpoint: a vertex `v` strictly
+//! between two neighbours `u` and `w` on one line, whose triangles come in
+//! pairs `(a, u, v)`, `(a, v, w)` around each far corner `a`. Each pair covers
+//! exactly the triangle `(a, u, w)` (the three points are on one line), so
+//! replacing the pair by that triangle and dropping `v` leaves the surface
+//! the very same point set: every invariant of the extraction (closed,
+//! manifold, oriented label surfaces, no crossings, shared junction curves)
+//! holds after it as before. Collinearity is decided exactly, on the integer
+//! lattice coordinates of the points.
+//!
+//! A vertex on a junction curve is dissolved only where the curve runs
+//! straight through it (its curve neighbours are `u` and `w`); curve ends and
+//! corners stay. Vertices are visited in id order, on the mesh as the earlier
+//! removals left it, so chains of such vertices shrink to their two ends and
+//! the result does not depend on the thread count.
+
+use crate::mesh::JunctionCurve;
+
+/// No vertex / a dead triangle.
+const NONE: u32 = u32::MAX;
+/// A curve end or corner: never dissolved.
+const FIXED: u32 = u32::MAX - 1;
+
+/// Dissolves every vertex inside a straight segment (see the module docs).
+/// `lattice[v]` are the exact lattice coordinates of vertex `v` (`None`: not
+/// on the lattice, never dissolved nor used as a segment end). Returns which
+/// vertices were dissolved; `tris` and `patch` keep only the live triangles.
+pub(crate) fn dissolve_straight(
+    lattice: &[Option<[i32; 3]>],
+    tris: &mut Vec<[u32; 3]>,
+    patch: &mut Vec<u32>,
+    curves: &[JunctionCurve],
+) -> Vec<bool> {
+    let n = lattice.len();
+    let mut curve_nb = curve_neighbours(n, curves);
+    let (start, mut list) = vertex_triangles(n, tris);
+    let mut dead = vec![false; n];
+    let mut star: Vec<(u32, [u32; 3])> = Vec::with_capacity(16);
+    for v in 0..n as u32 {
+        let Some(pv) = lattice[v as usize] else {
+            continue;
+        };
+        if curve_nb[v as usize][0] == FIXED {
+            continue;
+        }
+        let row = start[v as usize] as usize..start[v as usize + 1] as usize;
+        star.clear();
+        star.extend(
+            list[row.clone()]
+                .iter()
+                .filter(|&&t| t != NONE)
+                .map(|&t| (t, rotate_to(tris[t as usize], v))),
+        );
+        let Some(merge) = straight_merge(pv, lattice, &star, patch) else {
+            continue;
+        };
+        let (u, w) = merge.line;
+        let on_curve = curve_nb[v as usize];
+        if on_curve[0] != NONE && !(on_curve == [u, w] || on_curve == [w, u]) {
+            continue;
+        }
+        // an existing edge u–w would become shared by more triangles than its
+        // two (it cannot exist in a conforming complex; checked, not assumed)
+        let urow = start[u as usize] as usize..start[u as usize + 1] as usize;
+        if list[urow]
+            .iter()
+            .any(|&t| t != NONE && tris[t as usize].contains(&w))
+        {
+            continue;
+        }
+        for &(keep, gone, merged, l2, apex) in &merge.pairs {
+            tris[keep as usize] = merged;
+            tris[gone as usize] = [NONE; 3];
+            replace_in_row(&start, &mut list, l2, gone, keep);
+            replace_in_row(&start, &mut list, apex, gone, NONE);
+        }
+        list[row].iter_mut().for_each(|t| *t = NONE);
+        dead[v as usize] = true;
+        if on_curve[0] != NONE {
+            for (x, y) in [(u, w), (w, u)] {
+                let nb = &mut curve_nb[x as usize];
+                if nb[0] != FIXED {
+                    for slot in nb.iter_mut() {
+                        if *slot == v {
+                            *slot = y;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let mut k = 0;
+    for i in 0..tris.len() {
+        if tris[i][0] != NONE {
+            tris[k] = tris[i];
+            patch[k] = patch[i];
+            k += 1;
+        }
+    }
+    tris.truncate(k);
+    patch.truncate(k);
+    dead
+}
+
+/// The replacement of a vertex's triangles: its two line neighbours and, per
+/// far corner, (kept slot, dead slot, merged triangle, the line end whose
+/// row must name the kept slot, the far corner).
+struct Merge {
+    line: (u32, u32),
+    pairs: Vec<(u32, u32, [u32; 3], u32, u32)>,
+}
+
+/// Whether the triangles around `v` (each rotated to start at `v`) pair up
+/// along one straight line through it, and how they merge.
+fn straight_merge(
+    pv: [i32; 3],
+    lattice: &[Option<[i32; 3]>],
+    star: &[(u32, [u32; 3])],
+    patch: &[u32],
+) -> Option<Merge> {
+    if star.len() < 2 || star.len() % 2 == 1 {
+        return None;
+    }
+    let (u, w) = line_through(pv, lattice, star)?;
+    let on_line = |x: u32| x == u || x == w;
+    let mut pairs = Vec::with_capacity(star.len() / 2);
+    for &(t, [_, x, y]) in star {
+        // (v, a, L1): pair it with the (v, L2, a) of the same corner
+        if on_line(x) || !on_line(y) {
+            continue;
+        }
+        let (a, l1) = (x, y);
+        let mut partner = star
+            .iter()
+            .filter(|&&(_, [_, p, q])| q == a && on_line(p) && p != l1);
+        let &(t2, [_, l2, _]) = partner.next()?;
+        if partner.next().is_some() || patch[t as usize] != patch[t2 as usize] {
+            return None;
+        }
+        pairs.push((t, t2, [a, l1, l2], l2, a));
+    }
+    // every triangle in exactly one pair: corners not on the line, one each
+    let in_pairs = pairs.len() * 2 == star.len()
+        && star.iter().all(|&(_, [_, x, y])| on_line(x) != on_line(y))
+        && {
+            let mut apexes: Vec<u32> = pairs.iter().map(|p| p.4).collect();
+            apexes.sort_unstable();
+            apexes.windows(2).all(|w| w[0] != w[1])
+        };
+    in_pairs.then_some(Merge {
+        line: (u, w),
+        pairs,
+    })
+}
+
+/// The one pair of neighbours of `v` (at `pv`) on a line through it, with
+/// `v` strictly between them; `None` if there is none or more than one.
+fn line_through(
+    pv: [i32; 3],
+    lattice: &[Option<[i32; 3]>],
+    star: &[(u32, [u32; 3])],
+) -> Option<(u32, u32)> {
+    let mut nbs: Vec<u32> = star.iter().flat_map(|&(_, [_, x, y])| [x, y]).collect();
+    nbs.sort_unstable();
+    nbs.dedup();
+    let offset = |x: u32| -> Option<[i64; 3]> {
+        let p = lattice[x as usize]?;
+        Some([0, 1, 2].map(|k| (p[k] - pv[k]) as i64))
+    };
+    let mut found = None;
+    for (i, &a) in nbs.iter().enumerate() {
+        let Some(da) = offset(a) else { continue };
+        for &b in &nbs[i + 1..] {
+            let Some(db) = offset(b) else { continue };
+            let cross = [
+                da[1] * db[2] - da[2] * db[1],
+                da[2] * db[0] - da[0] * db[2],
+                da[0] * db[1] - da[1] * db[0],
+            ];
+            let dot = da[0] * db[0] + da[1] * db[1] + da[2] * db[2];
+            if cross == [0; 3] && dot < 0 {
+                if found.is_some() {
+                    return None;
+                }
+                found = Some((a, b));
+            }
+        }
+    }
+    found
+}
+
+/// `t` rotated so that it starts at `v` (orientation kept).
+#[inline]
+fn rotate_to(t: [u32; 3], v: u32) -> [u32; 3] {
+    if t[0] == v {
+        t
+    } else if t[1] == v {
+        [t[1], t[2], t[0]]
+    } else {
+        [t[2], t[0], t[1]]
+    }
+}
+
+/// Per vertex: its two neighbours along the junction curve through it,
+/// `[FIXED; 2]` at curve ends, corners and vertices on several curves, and
+/// `[NONE; 2]` off the curves.
+fn curve_neighbours(n: usize, curves: &[JunctionCurve]) -> Vec<[u32; 2]> {
+    let mut nb = vec![[NONE; 2]; n];
+    for c in curves {
+        let k = c.vertices.len();
+        for (i, &v) in c.vertices.iter().enumerate() {
+            let interior = c.closed || (i > 0 && i + 1 < k);
+            let slot = &mut nb[v as usize];
+            if !interior || slot[0] != NONE || k < 3 {
+                *slot = [FIXED; 2];
+                continue;
+            }
+            *slot = [c.vertices[(i + k - 1) % k], c.vertices[(i + 1) % k]];
+        }
+    }
+    nb
+}
+
+/// Triangles around each vertex, as compressed rows.
+fn vertex_triangles(n: usize, tris: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
+    let mut start = vec![0u32; n + 1];
+    for t in tris {
+        for &v in t {
+            start[v as usize + 1] += 1;
+        }
+    }
+    for v in 0..n {
+        start[v + 1] += start[v];
+    }
+    let mut fill = start.clone();
+    let mut list = vec![NONE; start[n] as usize];
+    for (i, t) in tris.iter().enumerate() {
+        for &v in t {
+            list[fill[v as usize] as usize] = i as u32;
+            fill[v as usize] += 1;
+        }
+    }
+    (start, list)
+}
+
+/// In vertex `v`'s row, `from` becomes `to`.
+#[inline]
+fn replace_in_row(start: &[u32], list: &mut [u32], v: u32, from: u32, to: u32) {
+    let row = start[v as usize] as usize..start[v as usize + 1] as usize;
+    if let Some(slot) = list[row].iter_mut().find(|t| **t == from) {
+        *slot = to;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn curve(vertices: Vec<u32>, closed: bool) -> JunctionCurve {
+        JunctionCurve {
+            vertices,
+            closed,
+            labels: vec![0, 1, 2],
+        }
+    }
+
+    /// A square 0..4 in the z = 0 plane split along x = 2 through vertices
+    /// 4 (bottom middle) and 5 (top middle), fanned from 6 and 7.
+    fn strip() -> (Vec<Option<[i32; 3]>>, Vec<[u32; 3]>) {
+        // 0 (0,0) 4 (2,0) 1 (4,0); 3 (0,4) 5 (2,4) 2 (4,4); apex 6 = (2,2) ... use
+        // a line of three points 0 – 4 – 1 with two apexes on either side
+        let lattice = vec![
+            Some([0, 0, 0]),  // 0
+            Some([4, 0, 0]),  // 1
+            Some([2, 3, 0]),  // 2: apex above the line
+            Some([2, -3, 0]), // 3: apex below
+            Some([2, 0, 0]),  // 4: on the line between 0 and 1
+        ];
+        let tris = vec![[2, 0, 4], [2, 4, 1], [3, 4, 0], [3, 1, 4]];
+        (lattice, tris)
+    }
+
+    #[test]
+    fn a_vertex_inside_a_straight_line_between_two_fans_goes() {
+        let (lattice, mut tris) = strip();
+        let mut patch = vec![0, 0, 1, 1];
+        let dead = dissolve_straight(&lattice, &mut tris, &mut patch, &[]);
+        assert_eq!(dead, vec![false, false, false, false, true]);
+        assert_eq!(tris, vec![[2, 0, 1], [3, 1, 0]]);
+        assert_eq!(patch, vec![0, 1]);
+    }
+
+    #[test]
+    fn pairs_in_different_patches_or_a_bent_line_stay() {
+        let (lattice, tris0) = strip();
+        let mut tris = tris0.clone();
+        let mut patch = vec![0, 1, 1, 1];
+        let dead = dissolve_straight(&lattice, &mut tris, &mut patch, &[]);
+        assert!(dead.iter().all(|d| !d));
+        assert_eq!(tris, tris0);
+        let mut bent = lattice.clone();
+        bent[4] = Some([2, 1, 0]);
+        let mut tris = tris0.clone();
+        let mut patch = vec![0, 0, 1, 1];
+        let dead = dissolve_straight(&bent, &mut tris, &mut patch, &[]);
+        assert!(dead.iter().all(|d| !d));
+    }
+
+    #[test]
+    fn curve_ends_stay_and_straight_curve_interiors_go() {
+        let (lattice, tris0) = strip();
+        // vertex 4 ends a curve: it stays
+        let mut tris = tris0.clone();
+        let mut patch = vec![0, 0, 1, 1];
+        let ends = [curve(vec![4, 2], false)];
+        assert!(!dissolve_straight(&lattice, &mut tris, &mut patch, &ends)[4]);
+        // vertex 4 inside the curve 0 – 4 – 1: it goes
+        let mut tris = tris0.clone();
+        let mut patch = vec![0, 0, 1, 1];
+        let through = [curve(vec![0, 4, 1], false)];
+        assert!(dissolve_straight(&lattice, &mut tris, &mut patch, &through)[4]);
+        // a curve turning at 4 (0 – 4 – 2) keeps it
+        let mut tris = tris0.clone();
+        let mut patch = vec![0, 0, 1, 1];
+        let turning = [curve(vec![0, 4, 2], false)];
+        assert!(!dissolve_straight(&lattice, &mut tris, &mut patch, &turning)[4]);
+    }
+
+    #[test]
+    fn a_chain_shrinks_to_its_ends() {
+        // 0 – 3 – 4 – 5 – 1 on the x axis, apex 2 above
+        let lattice = vec![
+            Some([0, 0, 0]),
+            Some([8, 0, 0]),
+            Some([4, 5, 0]),
+            Some([2, 0, 0]),
+            Some([4, 0, 0]),
+            Some([6, 0, 0]),
+        ];
+        let mut tris = vec![[2, 0, 3], [2, 3, 4], [2, 4, 5], [2, 5, 1]];
+        // close it below with a second apex so that every line vertex has two fans
+        lattice.len();
+        let mut lattice = lattice;
+        lattice.push(Some([4, -5, 0])); // 6
+        tris.extend([[6, 3, 0], [6, 4, 3], [6, 5, 4], [6, 1, 5]]);
+        let mut patch = vec![0; 8];
+        let dead = dissolve_straight(&lattice, &mut tris, &mut patch, &[]);
+        assert_eq!(dead, vec![false, false, false, true, true, true, false]);
+        assert_eq!(tris, vec![[2, 0, 1], [6, 1, 0]]);
+    }
+
+    #[test]
+    fn a_vertex_off_the_lattice_stays() {
+        let (mut lattice, mut tris) = strip();
+        lattice[4] = None;
+        let mut patch = vec![0, 0, 1, 1];
+        let dead = dissolve_straight(&lattice, &mut tris, &mut patch, &[]);
+        assert!(dead.iter().all(|d| !d));
+    }
+}
