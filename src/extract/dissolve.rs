@@ -115,7 +115,9 @@ struct Merge {
 }
 
 /// Whether the triangles around `v` (each rotated to start at `v`) pair up
-/// along one straight line through it, and how they merge.
+/// along one straight line through it, and how they merge. Where two lines
+/// would do (a flat star of four triangles, straight both ways), the first
+/// one found is taken: either gives the same point set.
 fn straight_merge(
     pv: [i32; 3],
     lattice: &[Option<[i32; 3]>],
@@ -125,12 +127,21 @@ fn straight_merge(
     if star.len() < 2 || star.len() % 2 == 1 {
         return None;
     }
-    let (u, w) = line_through(pv, lattice, star)?;
+    lines_through(pv, lattice, star)
+        .into_iter()
+        .find_map(|line| merge_along(line, star, patch))
+}
+
+/// The pairs of `star` along the line `u – v – w`, if every triangle is in one.
+fn merge_along((u, w): (u32, u32), star: &[(u32, [u32; 3])], patch: &[u32]) -> Option<Merge> {
     let on_line = |x: u32| x == u || x == w;
+    if !star.iter().all(|&(_, [_, x, y])| on_line(x) != on_line(y)) {
+        return None;
+    }
     let mut pairs = Vec::with_capacity(star.len() / 2);
     for &(t, [_, x, y]) in star {
         // (v, a, L1): pair it with the (v, L2, a) of the same corner
-        if on_line(x) || !on_line(y) {
+        if on_line(x) {
             continue;
         }
         let (a, l1) = (x, y);
@@ -143,27 +154,23 @@ fn straight_merge(
         }
         pairs.push((t, t2, [a, l1, l2], l2, a));
     }
-    // every triangle in exactly one pair: corners not on the line, one each
-    let in_pairs = pairs.len() * 2 == star.len()
-        && star.iter().all(|&(_, [_, x, y])| on_line(x) != on_line(y))
-        && {
-            let mut apexes: Vec<u32> = pairs.iter().map(|p| p.4).collect();
-            apexes.sort_unstable();
-            apexes.windows(2).all(|w| w[0] != w[1])
-        };
+    // every triangle in exactly one pair: one pair per far corner
+    let mut apexes: Vec<u32> = pairs.iter().map(|p| p.4).collect();
+    apexes.sort_unstable();
+    let in_pairs = pairs.len() * 2 == star.len() && apexes.windows(2).all(|w| w[0] != w[1]);
     in_pairs.then_some(Merge {
         line: (u, w),
         pairs,
     })
 }
 
-/// The one pair of neighbours of `v` (at `pv`) on a line through it, with
-/// `v` strictly between them; `None` if there is none or more than one.
-fn line_through(
+/// The pairs of neighbours of `v` (at `pv`) on a line through it, with `v`
+/// strictly between them, in the order of their ids.
+fn lines_through(
     pv: [i32; 3],
     lattice: &[Option<[i32; 3]>],
     star: &[(u32, [u32; 3])],
-) -> Option<(u32, u32)> {
+) -> Vec<(u32, u32)> {
     let mut nbs: Vec<u32> = star.iter().flat_map(|&(_, [_, x, y])| [x, y]).collect();
     nbs.sort_unstable();
     nbs.dedup();
@@ -171,7 +178,7 @@ fn line_through(
         let p = lattice[x as usize]?;
         Some([0, 1, 2].map(|k| (p[k] - pv[k]) as i64))
     };
-    let mut found = None;
+    let mut found = Vec::new();
     for (i, &a) in nbs.iter().enumerate() {
         let Some(da) = offset(a) else { continue };
         for &b in &nbs[i + 1..] {
@@ -183,10 +190,7 @@ fn line_through(
             ];
             let dot = da[0] * db[0] + da[1] * db[1] + da[2] * db[2];
             if cross == [0; 3] && dot < 0 {
-                if found.is_some() {
-                    return None;
-                }
-                found = Some((a, b));
+                found.push((a, b));
             }
         }
     }
@@ -276,7 +280,7 @@ mod tests {
         let lattice = vec![
             Some([0, 0, 0]),  // 0
             Some([4, 0, 0]),  // 1
-            Some([2, 3, 0]),  // 2: apex above the line
+            Some([1, 3, 0]),  // 2: apex above the line
             Some([2, -3, 0]), // 3: apex below
             Some([2, 0, 0]),  // 4: on the line between 0 and 1
         ];
@@ -343,14 +347,24 @@ mod tests {
         ];
         let mut tris = vec![[2, 0, 3], [2, 3, 4], [2, 4, 5], [2, 5, 1]];
         // close it below with a second apex so that every line vertex has two fans
-        lattice.len();
         let mut lattice = lattice;
-        lattice.push(Some([4, -5, 0])); // 6
+        lattice.push(Some([3, -5, 0])); // 6
         tris.extend([[6, 3, 0], [6, 4, 3], [6, 5, 4], [6, 1, 5]]);
         let mut patch = vec![0; 8];
         let dead = dissolve_straight(&lattice, &mut tris, &mut patch, &[]);
         assert_eq!(dead, vec![false, false, false, true, true, true, false]);
         assert_eq!(tris, vec![[2, 0, 1], [6, 1, 0]]);
+    }
+
+    #[test]
+    fn a_flat_star_straight_both_ways_goes_along_one_line() {
+        // the apexes 2, 3 are also on a line through 4: either merge is the same quad
+        let (mut lattice, mut tris) = strip();
+        lattice[2] = Some([2, 3, 0]);
+        let mut patch = vec![0, 0, 1, 1];
+        let dead = dissolve_straight(&lattice, &mut tris, &mut patch, &[]);
+        assert!(dead[4]);
+        assert_eq!(tris, vec![[2, 0, 1], [3, 1, 0]]);
     }
 
     #[test]
