@@ -18,6 +18,7 @@
 //! removals left it, so chains of such vertices shrink to their two ends and
 //! the result does not depend on the thread count.
 
+use crate::geom::incidence;
 use crate::mesh::JunctionCurve;
 
 /// No vertex / a dead triangle.
@@ -37,7 +38,7 @@ pub(crate) fn dissolve_straight(
 ) -> Vec<bool> {
     let n = lattice.len();
     let mut curve_nb = curve_neighbours(n, curves);
-    let (start, mut list) = vertex_triangles(n, tris);
+    let (start, mut list) = incidence::rows(n, tris);
     let mut dead = vec![false; n];
     let mut star: Vec<(u32, [u32; 3])> = Vec::with_capacity(16);
     for v in 0..n as u32 {
@@ -227,28 +228,6 @@ fn curve_neighbours(n: usize, curves: &[JunctionCurve]) -> Vec<[u32; 2]> {
         }
     }
     nb
-}
-
-/// Triangles around each vertex, as compressed rows.
-fn vertex_triangles(n: usize, tris: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
-    let mut start = vec![0u32; n + 1];
-    for t in tris {
-        for &v in t {
-            start[v as usize + 1] += 1;
-        }
-    }
-    for v in 0..n {
-        start[v + 1] += start[v];
-    }
-    let mut fill = start.clone();
-    let mut list = vec![NONE; start[n] as usize];
-    for (i, t) in tris.iter().enumerate() {
-        for &v in t {
-            list[fill[v as usize] as usize] = i as u32;
-            fill[v as usize] += 1;
-        }
-    }
-    (start, list)
 }
 
 /// In vertex `v`'s row, `from` becomes `to`.

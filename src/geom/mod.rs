@@ -8,11 +8,13 @@
 //! - [`grid`]: a uniform cell grid over boxes;
 //! - [`intersect`]: self-intersection queries over triangle sets;
 //! - [`nearest`]: nearest points on a triangle surface or a polyline;
-//! - [`dsu`]: union-find (disjoint sets).
+//! - [`dsu`]: union-find (disjoint sets);
+//! - [`incidence`]: the cells around each vertex, as compressed rows.
 
 pub mod bvh;
 pub mod dsu;
 pub mod grid;
+pub mod incidence;
 pub mod intersect;
 pub mod nearest;
 pub mod predicates;

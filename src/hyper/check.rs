@@ -72,23 +72,7 @@ pub fn check_closed_manifold(n_vertices: usize, tets: &[[u32; 4]]) -> ManifoldRe
         return r;
     }
     // stars: tetrahedra around each vertex (compressed rows)
-    let mut start = vec![0u32; n_vertices + 1];
-    for t in tets {
-        for &v in t {
-            start[v as usize + 1] += 1;
-        }
-    }
-    for v in 0..n_vertices {
-        start[v + 1] += start[v];
-    }
-    let mut fill = start.clone();
-    let mut star = vec![0u32; 4 * tets.len()];
-    for (i, t) in tets.iter().enumerate() {
-        for &v in t {
-            star[fill[v as usize] as usize] = i as u32;
-            fill[v as usize] += 1;
-        }
-    }
+    let (start, star) = crate::geom::incidence::rows(n_vertices, tets);
     let results: Vec<VertexFindings> = (0..n_vertices)
         .into_par_iter()
         .with_min_len(1024)
