@@ -285,17 +285,51 @@ impl Guard {
             made_boxes: Vec::new(),
             trusted,
         };
-        for t in obstacles {
-            g.add(t);
-        }
+        // entries get their ids in the order of their cells, so that a scan
+        // reads the entries of a cell (and of the next cell on its row) from
+        // one stretch of memory rather than from all over
+        let mut todo: Vec<(u64, Tri, u32, u32)> =
+            obstacles.into_iter().map(|t| (0, t, NONE, NONE)).collect();
         for (p, st) in patches.iter().enumerate() {
             for f in 0..st.mesh.face_slots() as u32 {
                 if !st.mesh.face_dead(f) {
-                    g.insert(&st.mesh, p as u32, f);
+                    todo.push((0, Tri::of_face(&st.mesh, p as u32, f), p as u32, f));
                 }
             }
         }
+        for item in &mut todo {
+            let (level, cell) = g.place(&item.1);
+            item.0 = ((level as u64) << 32) | cell as u64;
+        }
+        todo.sort_by_key(|item| item.0);
+        for (_, t, p, f) in todo {
+            let e = g.add(t);
+            if p != NONE {
+                g.entry[p as usize][f as usize] = e;
+            }
+        }
         g
+    }
+
+    /// The level and cell that triangle `t` is listed in: the finest level
+    /// whose cells are at least twice its half box, the cell of its centre.
+    fn place(&self, t: &Tri) -> (usize, u32) {
+        let b = t.bounds();
+        let half = ((b.1 - b.0) * 0.5).max_element();
+        let top = self.levels.len() - 1;
+        let level = if half.is_finite() {
+            self.levels
+                .iter()
+                .position(|l| 2.0 * half <= l.cell)
+                .unwrap_or(top)
+        } else {
+            top
+        };
+        let l = &self.levels[level];
+        (
+            level,
+            l.index(l.cell_at((b.0 + b.1) * 0.5 - self.lo)) as u32,
+        )
     }
 
     /// Lists a new entry for triangle `t`.
@@ -318,18 +352,8 @@ impl Guard {
     /// cells are at least twice its half box, in the cell of its centre.
     fn link(&mut self, e: u32, t: Tri) {
         let b = t.bounds();
-        let half = ((b.1 - b.0) * 0.5).max_element();
-        let top = self.levels.len() - 1;
-        let level = if half.is_finite() {
-            self.levels
-                .iter()
-                .position(|l| 2.0 * half <= l.cell)
-                .unwrap_or(top)
-        } else {
-            top
-        };
+        let (level, c) = self.place(&t);
         let l = &mut self.levels[level];
-        let c = l.index(l.cell_at((b.0 + b.1) * 0.5 - self.lo)) as u32;
         let first = l.head[c as usize];
         l.head[c as usize] = e;
         l.count += 1;

@@ -265,6 +265,12 @@ pub struct RemeshTimings {
 /// smoothed reference: keeps chords from cutting across thin structures.
 const FIT_VOXELS: f64 = 0.3;
 
+/// The last iterations, in which relaxation offsets vertices so that the
+/// triangles lie on the reference on average (see `isotropic::chord_offset`):
+/// two, because blocks shift between iterations and a vertex on the border
+/// of two blocks is relaxed only in the iteration that has it inside one.
+const CHORD_OFFSET_ITERATIONS: u32 = 2;
+
 /// Islands (closed components without junctions) of at most this many
 /// voxels, or at most [`ISLAND_TARGETS`] target edges long, are not
 /// smoothed (see [`network::Network::mark_islands`]).
@@ -351,16 +357,18 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
         .iter()
         .cloned()
         .fold(f64::INFINITY, f64::min);
-    let shared = Shared {
+    let mut shared = Shared {
         references: &references,
         curve_references: &curve_references,
         sizing,
         eps: FIT_VOXELS * voxel,
+        offset_chords: false,
     };
     for it in 0..params.iterations {
         if work.tris.is_empty() {
             break;
         }
+        shared.offset_chords = it + CHORD_OFFSET_ITERATIONS >= params.iterations;
         let longest = work
             .tris
             .par_iter()

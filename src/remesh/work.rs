@@ -48,6 +48,10 @@ pub(super) struct Shared<'r> {
     pub(super) sizing: &'r Sizing,
     /// Largest distance of a new triangle's centroid from the reference (mm).
     pub(super) eps: f64,
+    /// Whether this pass's relaxation moves vertices off the reference so
+    /// that the triangles lie on it on average (see
+    /// `isotropic::chord_offset`): the last iteration's.
+    pub(super) offset_chords: bool,
 }
 
 /// The blocks of one pass: columns over a grid in the plane of the mesh's
@@ -550,6 +554,7 @@ impl Work {
         };
         let t_slab = std::time::Instant::now();
         let mut r = Remesher::new(region, shared.sizing, shared.eps, cell);
+        r.offset_chords = shared.offset_chords;
         r.iterate();
         let result: RegionResult = r.finish();
         if std::env::var_os("SEPTA_DEBUG_WORK").is_some() {
