@@ -215,3 +215,71 @@ fn intersections_are_found() {
         rep.summary()
     );
 }
+
+/// A block of label 1 holding 343 one-voxel cavities of label 0, more than
+/// the nesting check tests one ray at a time: it finds every cavity inside
+/// the block through its grid of triangles, and a cavity turned inside out
+/// among them.
+#[test]
+fn many_cavities_are_found_nested() {
+    let n = 24;
+    let mut v = vec![0i64; n * n * n];
+    for z in 1..n - 1 {
+        for y in 1..n - 1 {
+            for x in 1..n - 1 {
+                let cavity = [x, y, z].iter().all(|&c| c % 3 == 2 && c < 22);
+                v[x + n * (y + n * z)] = if cavity { 0 } else { 1 };
+            }
+        }
+    }
+    let (vol, r) = resolved_outside0(volume([n, n, n], &v));
+    let (_, mut mesh, rep) = run(&vol, &r, ExtractOptions::default());
+    assert!(rep.passed(), "{}", rep.summary());
+    let l1 = rep.labels.iter().find(|l| l.value == 1).unwrap();
+    assert_eq!(l1.components, 1 + 343, "outer boundary and cavities");
+    let l0 = rep.labels.iter().find(|l| l.value == 0).unwrap();
+    assert!(l0.unbounded);
+
+    // turn one cavity (the smallest component) inside out
+    let mut parent: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+    fn root(p: &mut [u32], mut x: u32) -> u32 {
+        while p[x as usize] != x {
+            p[x as usize] = p[p[x as usize] as usize];
+            x = p[x as usize];
+        }
+        x
+    }
+    for t in &mesh.triangles {
+        for k in 1..3 {
+            let (a, b) = (root(&mut parent, t[0]), root(&mut parent, t[k]));
+            parent[a as usize] = b;
+        }
+    }
+    let mut size = vec![0usize; mesh.positions.len()];
+    for t in &mesh.triangles {
+        size[root(&mut parent, t[0]) as usize] += 1;
+    }
+    let last = (0..size.len() as u32)
+        .filter(|&r| size[r as usize] > 0)
+        .min_by_key(|&r| size[r as usize])
+        .unwrap();
+    let mut turned = 0;
+    for t in 0..mesh.triangles.len() {
+        let tri = mesh.triangles[t];
+        if root(&mut parent, tri[0]) == last {
+            mesh.triangles[t] = [tri[0], tri[2], tri[1]];
+            turned += 1;
+        }
+    }
+    assert!(
+        turned < mesh.triangles.len() / 100,
+        "one small cavity turned"
+    );
+    let rep = check(&mesh);
+    assert_eq!(
+        failing(&rep),
+        vec!["surfaces face away from their label"],
+        "{}",
+        rep.summary()
+    );
+}

@@ -34,7 +34,7 @@
 //! either ascii inline data or base64 appended data (each array: the base64 of
 //! its 8-byte byte count, then the base64 of its bytes; `offset` counts base64
 //! characters after the `_`). Arrays: `Points` (Float32 ×3), `Polys` with
-//! `connectivity` and `offsets` (Int64), and CellData `label_a`, `label_b`
+//! `connectivity` and `offsets` (Int32, Int64 past 2³¹ indices), and CellData `label_a`, `label_b`
 //! (original label values) and `patch`, all Int32. Label names are in XML
 //! comments `<!-- label <value> <name> -->` before the `VTKFile` element.
 
@@ -272,13 +272,28 @@ fn vtp_arrays(mesh: &InterfaceMesh, enc: VtpEncoding) -> Result<Vec<VtpArray>> {
         .iter()
         .flat_map(|p: &DVec3| p.to_array().map(|c| c as f32))
         .collect();
-    let conn: Vec<i64> = mesh
-        .triangles
-        .iter()
-        .flatten()
-        .map(|&v| i64::from(v))
-        .collect();
-    let offsets: Vec<i64> = (1..=mesh.triangles.len() as i64).map(|t| 3 * t).collect();
+    // Int32 wherever the offsets fit it (half the bytes of Int64; VTK reads
+    // either)
+    let polys = if 3 * mesh.triangles.len() <= i32::MAX as usize {
+        let conn: Vec<i32> = mesh.triangles.iter().flatten().map(|&v| v as i32).collect();
+        let offsets: Vec<i32> = (1..=mesh.triangles.len() as i32).map(|t| 3 * t).collect();
+        [
+            vtp_array("connectivity", 1, &conn, enc),
+            vtp_array("offsets", 1, &offsets, enc),
+        ]
+    } else {
+        let conn: Vec<i64> = mesh
+            .triangles
+            .iter()
+            .flatten()
+            .map(|&v| i64::from(v))
+            .collect();
+        let offsets: Vec<i64> = (1..=mesh.triangles.len() as i64).map(|t| 3 * t).collect();
+        [
+            vtp_array("connectivity", 1, &conn, enc),
+            vtp_array("offsets", 1, &offsets, enc),
+        ]
+    };
     let tp = &mesh.triangle_patch;
     let label_a: Vec<i32> = tp.iter().map(|&p| values[p as usize][0]).collect();
     let label_b: Vec<i32> = tp.iter().map(|&p| values[p as usize][1]).collect();
@@ -286,10 +301,11 @@ fn vtp_arrays(mesh: &InterfaceMesh, enc: VtpEncoding) -> Result<Vec<VtpArray>> {
         .iter()
         .map(|&p| i32::try_from(p).unwrap_or(i32::MAX))
         .collect();
+    let [conn, offsets] = polys;
     Ok(vec![
         vtp_array("Points", 3, &points, enc),
-        vtp_array("connectivity", 1, &conn, enc),
-        vtp_array("offsets", 1, &offsets, enc),
+        conn,
+        offsets,
         vtp_array("label_a", 1, &label_a, enc),
         vtp_array("label_b", 1, &label_b, enc),
         vtp_array("patch", 1, &patch, enc),

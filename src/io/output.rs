@@ -479,11 +479,13 @@ pub fn write_outdir(
     manifest: &mut Manifest,
 ) -> Result<Vec<PathBuf>> {
     // drawn in LPS whatever the files' space, so the views keep their meaning
-    let preview = if formats.preview {
+    let lps = mesh;
+    let render = || -> Result<Option<Vec<u8>>> {
+        if !formats.preview {
+            return Ok(None);
+        }
         let opts = crate::render::PreviewOptions::default();
-        Some(crate::render::render_preview(mesh, &opts)?.to_png()?)
-    } else {
-        None
+        Ok(Some(crate::render::render_preview(lps, &opts)?.to_png()?))
     };
     let converted;
     let mesh = if space == Space::Lps {
@@ -493,7 +495,7 @@ pub fn write_outdir(
         &converted
     };
     manifest.space = space_description(space).to_string();
-    outdir.write(|tmp| write_files(tmp, mesh, formats, space, preview.as_deref(), manifest))
+    outdir.write(|tmp| write_files(tmp, mesh, formats, space, render, manifest))
 }
 
 /// The manifest's `space`.
@@ -517,27 +519,54 @@ fn write_files(
     mesh: &InterfaceMesh,
     formats: Formats,
     space: Space,
-    preview: Option<&[u8]>,
+    render_preview: impl FnOnce() -> Result<Option<Vec<u8>>> + Send,
     manifest: &mut Manifest,
 ) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir.join("patches")).map_err(|e| Error::io(dir, e))?;
-    let mut files = vec![PathBuf::from("interfaces.ply")];
-    write_ply_in(&dir.join("interfaces.ply"), mesh, space)?;
     let paths = patch_paths(mesh);
-    let written = write_patch_plys_in(mesh, |p| dir.join(&paths[p]), space)?;
+    // the files (and the preview) are independent: made side by side (the
+    // first error wins, in this order)
+    let (preview, ((ply, patches), (vtp, junctions))) = rayon::join(render_preview, || {
+        rayon::join(
+            || {
+                rayon::join(
+                    || write_ply_in(&dir.join("interfaces.ply"), mesh, space),
+                    || write_patch_plys_in(mesh, |p| dir.join(&paths[p]), space),
+                )
+            },
+            || {
+                rayon::join(
+                    // VTK, ParaView, 3D Slicer and pyvista read labels from VTP only
+                    || {
+                        write_vtp_in(
+                            &dir.join("interfaces.vtp"),
+                            mesh,
+                            VtpEncoding::Base64,
+                            space,
+                        )
+                    },
+                    || {
+                        write_junctions_ply_in(&dir.join("junctions.ply"), mesh, space)?;
+                        write_junctions_vtp(
+                            &dir.join("junctions.vtp"),
+                            mesh,
+                            VtpEncoding::Base64,
+                            space,
+                        )
+                    },
+                )
+            },
+        )
+    });
+    ply?;
+    let written = patches?;
+    vtp?;
+    junctions?;
     debug_assert_eq!(written, paths.len());
+    let mut files = vec![PathBuf::from("interfaces.ply")];
     files.extend(paths);
-    // VTK, ParaView, 3D Slicer and pyvista read labels from VTP only
-    write_vtp_in(
-        &dir.join("interfaces.vtp"),
-        mesh,
-        VtpEncoding::Base64,
-        space,
-    )?;
     files.push("interfaces.vtp".into());
-    write_junctions_ply_in(&dir.join("junctions.ply"), mesh, space)?;
     files.push("junctions.ply".into());
-    write_junctions_vtp(&dir.join("junctions.vtp"), mesh, VtpEncoding::Base64, space)?;
     files.push("junctions.vtp".into());
     if formats.obj {
         write_obj_in(&dir.join("interfaces.obj"), mesh, space)?;
@@ -550,8 +579,8 @@ fn write_files(
         formats.per_label,
         space,
     )?);
-    if let Some(png) = preview {
-        crate::io::atomic_write(&dir.join(PREVIEW_FILE), png)?;
+    if let Some(png) = preview? {
+        crate::io::atomic_write(&dir.join(PREVIEW_FILE), &png)?;
         files.push(PREVIEW_FILE.into());
     }
     files.push("manifest.json".into());

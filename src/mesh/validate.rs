@@ -822,11 +822,12 @@ fn nesting_depths(
     if !contained.iter().any(|&b| b) {
         return vec![0; k];
     }
-    // list is sorted by component id
-    let local = |c: u32| {
-        list.binary_search_by_key(&c, |x| x.0)
-            .expect("component listed")
-    };
+    // component id -> index in `list` (looked up once per side: a table)
+    let mut index_of = vec![u32::MAX; list.iter().map(|x| x.0 as usize + 1).max().unwrap_or(0)];
+    for (i, x) in list.iter().enumerate() {
+        index_of[x.0 as usize] = i as u32;
+    }
+    let local = |c: u32| index_of[c as usize] as usize;
     let mut firsts = vec![u32::MAX; k];
     for &sd in sides {
         let i = local(comp_of_side[sd as usize]);
@@ -891,7 +892,23 @@ fn nesting_depths(
             )
         },
     );
-    let n = ((candidates.len() as f64).sqrt().ceil() as usize).clamp(1, 1024);
+    // cells about as wide as the triangles (in y and z): each triangle is
+    // listed in a few cells, and a ray meets only the triangles of its cell
+    // (cells of √(triangles) per axis listed each triangle in 20 to 30)
+    let mean_size = tris
+        .iter()
+        .map(|t| {
+            let (tlo, thi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+            (thi.y - tlo.y).max(thi.z - tlo.z)
+        })
+        .sum::<f64>()
+        / tris.len().max(1) as f64;
+    let span = (hi.y - lo.y).max(hi.z - lo.z);
+    let n = if mean_size > 0.0 && span.is_finite() {
+        ((span / mean_size).ceil() as usize).clamp(1, 1024)
+    } else {
+        1
+    };
     let cell = DVec3::new(
         1.0,
         ((hi.y - lo.y) / n as f64).max(1e-9),
