@@ -909,8 +909,13 @@ impl<'r> Remesher<'r> {
                 };
                 // (a vertex at rest stays: no projection, no checks)
                 let rest = RELAX_AT_REST * sizing.at(at);
-                if tangential.length() < rest && missing.abs() < rest {
-                    return None;
+                if tangential.length() < rest {
+                    if missing.abs() < rest {
+                        return None;
+                    }
+                    // only the offset: along the normal, off the reference
+                    // as far as the triangles ask (no projection needed)
+                    return Some((v, at + n * missing, m.hint[v as usize]));
                 }
                 let (onto, near) = fit
                     .reference
