@@ -747,8 +747,9 @@ fn vtp_ascii_and_base64_hold_points_polys_and_cell_data() {
         assert_eq!(arrays["label_a"], [-3.0, -3.0, 7.0, 7.0]);
         assert_eq!(arrays["label_b"], [7.0, 7.0, 20.0, 20.0]);
         assert_eq!(arrays["patch"], [0.0, 0.0, 1.0, 1.0]);
-        for name in ["label_a", "label_b", "patch"] {
-            assert_eq!(types[name], "Int32");
+        // (connectivity and offsets too: Int64 only past 2³¹ indices)
+        for name in ["label_a", "label_b", "patch", "connectivity", "offsets"] {
+            assert_eq!(types[name], "Int32", "{name}");
         }
     }
 }
