@@ -146,7 +146,7 @@ pub(super) struct Remesher<'r> {
     /// Debug counters: guard queries, made triangles, guard ns, refusals; then per pass ns: curves, split, collapse, flip, relax
     pub(super) stats: [u64; 10],
     /// Whether relaxation moves vertices off the reference by their chord
-    /// offset ([`chord_offset`]): set for the last iteration.
+    /// offset ([`chord_offset`]): set for the last two iterations.
     pub(super) offset_chords: bool,
 }
 
@@ -1088,8 +1088,8 @@ fn face_gaps(m: &HalfedgeMesh, reference: &SurfaceRef) -> Vec<f64> {
         .collect()
 }
 
-/// How far off the reference, along the normal `n`, interior vertex `v`
-/// sits so that the triangles around it lie on the reference on average
+/// How much farther off the reference, along its normal, interior vertex
+/// `v` should sit so that the triangles around it lie on the reference on average
 /// rather than inside its bends. Vertices on a curved surface span chords,
 /// which cut convex parts and bridge concave ones: an interpolating mesh
 /// shrinks every bump and fills every dent by about h²/(8 r) (a one-voxel

@@ -50,7 +50,7 @@ pub(super) struct Shared<'r> {
     pub(super) eps: f64,
     /// Whether this pass's relaxation moves vertices off the reference so
     /// that the triangles lie on it on average (see
-    /// `isotropic::chord_offset`): the last iteration's.
+    /// `isotropic::chord_offset`): those of the last two iterations.
     pub(super) offset_chords: bool,
 }
 
