@@ -308,34 +308,84 @@ impl SurfaceRef {
 /// Reference polyline of one junction curve.
 pub struct CurveRef {
     segs: Vec<[DVec3; 2]>,
+    /// Arc length from the first point to the start of each segment.
+    arc: Vec<f64>,
+    length: f64,
+    closed: bool,
     bvh: Bvh,
 }
 
 impl CurveRef {
     pub fn new(points: &[DVec3], closed: bool) -> Self {
         let mut segs: Vec<[DVec3; 2]> = points.windows(2).map(|w| [w[0], w[1]]).collect();
-        if closed && points.len() > 2 {
+        let closed = closed && points.len() > 2;
+        if closed {
             segs.push([points[points.len() - 1], points[0]]);
         }
         let boxes: Vec<(DVec3, DVec3)> = segs
             .iter()
             .map(|s| (s[0].min(s[1]), s[0].max(s[1])))
             .collect();
+        let mut arc = Vec::with_capacity(segs.len());
+        let mut length = 0.0;
+        for s in &segs {
+            arc.push(length);
+            length += (s[1] - s[0]).length();
+        }
         CurveRef {
             bvh: Bvh::new(&boxes),
             segs,
+            arc,
+            length,
+            closed,
         }
     }
 
     /// Nearest point of the reference curve.
     pub fn project(&self, p: DVec3) -> DVec3 {
+        self.locate(p).map_or(p, |(q, _)| q)
+    }
+
+    /// Nearest point of the reference curve and its arc length from the
+    /// curve's first point; `None` for an empty curve.
+    pub fn locate(&self, p: DVec3) -> Option<(DVec3, f64)> {
         let segs = &self.segs;
-        match self.bvh.nearest(p, |i| {
+        let (i, _) = self.bvh.nearest(p, |i| {
             (closest_on_segment(p, segs[i as usize][0], segs[i as usize][1]) - p).length_squared()
-        }) {
-            Some((i, _)) => closest_on_segment(p, segs[i as usize][0], segs[i as usize][1]),
-            None => p,
+        })?;
+        let [a, b] = segs[i as usize];
+        let q = closest_on_segment(p, a, b);
+        Some((q, self.arc[i as usize] + (q - a).length()))
+    }
+
+    /// Total arc length.
+    pub fn length(&self) -> f64 {
+        self.length
+    }
+
+    /// Whether the curve closes on itself (arc lengths wrap around).
+    pub fn is_closed(&self) -> bool {
+        self.closed
+    }
+
+    /// The point at arc length `s` (wrapped on a closed curve, clamped to
+    /// the ends on an open one).
+    pub fn at(&self, s: f64) -> DVec3 {
+        let Some(first) = self.segs.first() else {
+            return DVec3::NAN;
+        };
+        let s = if self.closed && self.length > 0.0 {
+            s.rem_euclid(self.length)
+        } else {
+            s.clamp(0.0, self.length)
+        };
+        let i = self.arc.partition_point(|&a| a <= s).saturating_sub(1);
+        let [a, b] = self.segs[i];
+        let l = (b - a).length();
+        if l <= 0.0 {
+            return if i == 0 { first[0] } else { a };
         }
+        a + (b - a) * ((s - self.arc[i]) / l).clamp(0.0, 1.0)
     }
 }
 
@@ -362,6 +412,15 @@ mod tests {
             DVec3::new(0.9, 0.9, 0.0),
         );
         let cr = CurveRef::new(&[a, b, DVec3::new(1.0, 1.0, 0.0)], false);
+        let (q, s) = cr.locate(DVec3::new(1.5, 0.5, 0.0)).unwrap();
+        assert_near(q, DVec3::new(1.0, 0.5, 0.0));
+        assert!((s - 1.5).abs() < 1e-12);
+        assert_near(cr.at(1.5), q);
+        assert_near(cr.at(9.0), DVec3::new(1.0, 1.0, 0.0));
+        let ring = CurveRef::new(&[a, b, DVec3::new(1.0, 1.0, 0.0), c], true);
+        assert!(ring.is_closed() && (ring.length() - 4.0).abs() < 1e-12);
+        assert_near(ring.at(4.5), DVec3::new(0.5, 0.0, 0.0));
+        assert_near(ring.at(-0.5), DVec3::new(0.0, 0.5, 0.0));
         assert_near(
             cr.project(DVec3::new(1.5, 0.5, 0.0)),
             DVec3::new(1.0, 0.5, 0.0),

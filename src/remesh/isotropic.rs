@@ -9,8 +9,8 @@
 //! Vertices shared with triangles outside the slab are locked. One
 //! iteration ([`Remesher::iterate`]) is:
 //! 1. **Curves**, one run after the other: edges longer than 4/3 h split,
-//!    shorter than 4/5 h collapsed (never a corner), vertices relaxed along the
-//!    curve and projected onto its smoothed reference polyline; every change
+//!    shorter than 4/5 h collapsed (never a corner), vertices relaxed along
+//!    the smoothed reference polyline, by arc length; every change
 //!    applies to all patches that share the edge, so they keep sharing their
 //!    boundary exactly.
 //! 2. **Patches**, one after the other: interior edges split and collapsed,
@@ -708,14 +708,17 @@ impl<'r> Remesher<'r> {
         true
     }
 
-    /// Moves curve vertices toward the middle of their curve neighbours, on the
-    /// reference curve, where no triangle turns over and the guard allows it.
+    /// Moves curve vertices halfway toward the middle, along the
+    /// reference curve, of their curve neighbours (by arc length: a
+    /// straight-line midpoint lies off the curve, across a small loop even
+    /// on its far side), where no triangle turns over and the guard allows it.
     fn relax_curve(&mut self, c: usize) {
         let n = self.curves[c].vertices.len();
         if n < 3 {
             return;
         }
         let closed = self.curves[c].closed;
+        let reference = self.curves[c].reference;
         let targets: Vec<(u32, DVec3)> = (0..n)
             .filter(|&i| closed || (i > 0 && i + 1 < n))
             .filter_map(|i| {
@@ -725,13 +728,9 @@ impl<'r> Remesher<'r> {
                     return None;
                 }
                 let (a, b) = (cv[(i + n - 1) % n], cv[(i + 1) % n]);
-                let mid = (self.pos[a as usize] + self.pos[b as usize]) * 0.5;
-                Some((
-                    v,
-                    self.curves[c]
-                        .reference
-                        .project(self.pos[v as usize] + (mid - self.pos[v as usize]) * 0.5),
-                ))
+                let arc = |u: u32| reference.locate(self.pos[u as usize]).map(|(_, s)| s);
+                let s = relaxed_arc(reference, arc(a)?, arc(v)?, arc(b)?)?;
+                Some((v, reference.at(s)))
             })
             .collect();
         for (v, p) in targets {
@@ -1248,6 +1247,33 @@ pub(super) fn collapse_geometry_ok(
         }
     }
     true
+}
+
+/// The arc length halfway from `v` (at arc length `sv`) to the middle of
+/// its curve neighbours at `sa` and `sb`, on the arc between them that
+/// holds `v`; `None` where `v` is not between them (an open curve whose
+/// vertices the projections put out of order).
+fn relaxed_arc(reference: &CurveRef, sa: f64, sv: f64, sb: f64) -> Option<f64> {
+    let halfway = |from: f64, to: f64| from + 0.5 * (0.5 * to - from);
+    if reference.is_closed() {
+        let length = reference.length();
+        if !(length > 0.0) {
+            return None;
+        }
+        let ahead = |x: f64, y: f64| (y - x).rem_euclid(length);
+        // along the curve from a through v to b, or the other way round
+        let (start, to_v, to_end) = if ahead(sa, sv) <= ahead(sa, sb) {
+            (sa, ahead(sa, sv), ahead(sa, sb))
+        } else {
+            (sb, ahead(sb, sv), ahead(sb, sa))
+        };
+        return Some(start + halfway(to_v, to_end));
+    }
+    if (sa <= sv && sv <= sb) || (sb <= sv && sv <= sa) {
+        Some(sa + halfway(sv - sa, sb - sa))
+    } else {
+        None
+    }
 }
 
 fn target_valence(m: &HalfedgeMesh, v: u32) -> i32 {
