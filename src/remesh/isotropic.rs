@@ -19,7 +19,7 @@
 //!
 //! Every operation is checked before it is applied: the link condition (the
 //! patch stays a manifold), no triangle turning over, no new edge longer than
-//! 4/3 h from a collapse, no triangle of poor quality where the old ones were
+//! 4/3 of its own target from a collapse, no triangle of poor quality where the old ones were
 //! better, the new triangles follow the reference (centroid within `eps`),
 //! and the guard: they cross no triangle of any patch. What cannot be done
 //! safely is not done, here and now only; the rest of the mesh goes on.
@@ -677,8 +677,7 @@ impl<'r> Remesher<'r> {
                 reference: st.reference,
                 eps: self.eps,
             };
-            st.mesh.is_collapse_ok(h)
-                && collapse_geometry_ok(&st.mesh, h, target_pos, f64::INFINITY, fit)
+            st.mesh.is_collapse_ok(h) && collapse_geometry_ok(&st.mesh, h, target_pos, None, fit)
         });
         if !ok {
             return false;
@@ -788,10 +787,11 @@ impl<'r> Remesher<'r> {
             let target = self
                 .sizing
                 .edge(m.pos[m.from(e) as usize], m.pos[m.to(e) as usize]);
-            let (lo, hi) = (COLLAPSE_BELOW * target, SPLIT_ABOVE * target);
-            if m.edge_length(e) >= lo {
+            if m.edge_length(e) >= COLLAPSE_BELOW * target {
                 continue;
             }
+            // no new edge that the split pass would split again
+            let longest = Some(self.sizing);
             for h in [e, e ^ 1] {
                 let m = &self.patches[p as usize].mesh;
                 let v0 = m.from(h);
@@ -800,7 +800,7 @@ impl<'r> Remesher<'r> {
                 }
                 let at = m.pos[m.to(h) as usize];
                 if m.is_collapse_ok(h)
-                    && collapse_geometry_ok(m, h, at, hi, fit)
+                    && collapse_geometry_ok(m, h, at, longest, fit)
                     && self.guarded_collapse(p, h, at)
                 {
                     continue 'edges;
@@ -821,8 +821,8 @@ impl<'r> Remesher<'r> {
                 (m.pos[v0 as usize] + m.pos[v1 as usize]) * 0.5,
                 m.hint[v1 as usize],
             );
-            if collapse_geometry_ok(m, e, at, hi, fit)
-                && collapse_geometry_ok(m, e ^ 1, at, hi, fit)
+            if collapse_geometry_ok(m, e, at, longest, fit)
+                && collapse_geometry_ok(m, e ^ 1, at, longest, fit)
                 && self.guarded_collapse(p, e, at)
             {
                 self.patches[p as usize].mesh.hint[v1 as usize] = near;
@@ -1145,12 +1145,16 @@ pub(super) fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3, fit: Fit) -> bool {
 
 /// Whether collapsing `h` (from(h) moves to `p`, then merges into to(h)) keeps
 /// the triangles facing the same way, of acceptable quality, following the
-/// reference, and its new edges no longer than `max_edge`.
+/// reference, and each of its new edges no longer than 4/3 of its own target
+/// in `max_edge` (the bound the split pass applies, so that no collapse makes
+/// an edge to split again; where the target grows away from the collapsed
+/// edge, its own target would refuse collapses the new edges allow); `None`:
+/// no bound.
 pub(super) fn collapse_geometry_ok(
     m: &HalfedgeMesh,
     h: u32,
     p: DVec3,
-    max_edge: f64,
+    max_edge: Option<&Sizing>,
     fit: Fit,
 ) -> bool {
     let (v0, v1) = (m.from(h), m.to(h));
@@ -1188,7 +1192,12 @@ pub(super) fn collapse_geometry_ok(
     // cheap checks first, for every triangle: the fits cost the most
     for g in m.outgoing(v0) {
         let w = m.to(g);
-        if w != v1 && (m.pos[w as usize] - p).length() > max_edge {
+        if w != v1
+            && max_edge.is_some_and(|sizing| {
+                let pw = m.pos[w as usize];
+                (pw - p).length() > SPLIT_ABOVE * sizing.edge(pw, p)
+            })
+        {
             return false;
         }
         // an edge between two junction vertices may only appear on the boundary:
