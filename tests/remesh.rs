@@ -162,8 +162,10 @@ fn thin_plate_survives() {
 }
 
 /// The noisy 64³ phantom at L = 2 voxels (structures only 2–4 L wide): every
-/// invariant including no self-intersections, junctions shared, ≥ 85 % of
-/// edges within [0.8 h, 1.33 h] of the local target, ≥ 97.5 % of triangles
+/// invariant including no self-intersections, junctions shared, ≥ 90 % of
+/// edges within [0.8 h, 1.33 h] of the local target (89.8 % while a collapse
+/// bounded its new edges by the collapsed edge's target instead of their
+/// own; 90.2 % since), ≥ 97.5 % of triangles
 /// with minimum angle ≥ 20°, Hausdorff ≤ 1 voxel, volume change ≤ 5 % for
 /// labels over 1000 voxels, ≤ 1 % of the surface left as extracted. (This
 /// seed left 9 crossing pairs that the earlier remesher could only remove by
@@ -199,7 +201,7 @@ fn noisy_phantom_quality() {
     let s = q.summary();
     assert_eq!(bad, 0, "{s}");
     assert!(stuck(&out) <= 0.01, "{} kept: {s}", out.kept_share);
-    assert!(q.edges.within_range >= 0.85, "{s}");
+    assert!(q.edges.within_range >= 0.90, "{s}");
     assert!(q.angles.min_ge_20 >= 0.975, "{s}");
     assert!(q.distance.as_ref().unwrap().hausdorff_voxels <= 1.0, "{s}");
     let counts = vol.voxel_counts();
