@@ -18,9 +18,9 @@
 //!    tangentially and projected onto the patch's smoothed reference.
 //!
 //! Every operation is checked before it is applied: the link condition (the
-//! patch stays a manifold), no triangle turning over, no new edge longer than
-//! 4/3 of its own target from a collapse, no triangle of poor quality where the old ones were
-//! better, the new triangles follow the reference (centroid within `eps`),
+//! patch stays a manifold), no triangle turning over, no new edge from a
+//! collapse longer than 4/3 of its own target, no triangle of poor quality
+//! where the old ones were better, the new triangles follow the reference (centroid within `eps`),
 //! and the guard: they cross no triangle of any patch. What cannot be done
 //! safely is not done, here and now only; the rest of the mesh goes on.
 
@@ -778,6 +778,8 @@ impl<'r> Remesher<'r> {
 
     fn collapse_short_edges(&mut self, p: u32) {
         let fit = self.fit(p);
+        // no new edge that the split pass would split again
+        let max_edge = Some(self.sizing);
         let edges: Vec<u32> = self.patches[p as usize].mesh.edges().collect();
         'edges: for e in edges {
             let m = &self.patches[p as usize].mesh;
@@ -790,8 +792,6 @@ impl<'r> Remesher<'r> {
             if m.edge_length(e) >= COLLAPSE_BELOW * target {
                 continue;
             }
-            // no new edge that the split pass would split again
-            let longest = Some(self.sizing);
             for h in [e, e ^ 1] {
                 let m = &self.patches[p as usize].mesh;
                 let v0 = m.from(h);
@@ -800,7 +800,7 @@ impl<'r> Remesher<'r> {
                 }
                 let at = m.pos[m.to(h) as usize];
                 if m.is_collapse_ok(h)
-                    && collapse_geometry_ok(m, h, at, longest, fit)
+                    && collapse_geometry_ok(m, h, at, max_edge, fit)
                     && self.guarded_collapse(p, h, at)
                 {
                     continue 'edges;
@@ -821,8 +821,8 @@ impl<'r> Remesher<'r> {
                 (m.pos[v0 as usize] + m.pos[v1 as usize]) * 0.5,
                 m.hint[v1 as usize],
             );
-            if collapse_geometry_ok(m, e, at, longest, fit)
-                && collapse_geometry_ok(m, e ^ 1, at, longest, fit)
+            if collapse_geometry_ok(m, e, at, max_edge, fit)
+                && collapse_geometry_ok(m, e ^ 1, at, max_edge, fit)
                 && self.guarded_collapse(p, e, at)
             {
                 self.patches[p as usize].mesh.hint[v1 as usize] = near;
@@ -1145,11 +1145,8 @@ pub(super) fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3, fit: Fit) -> bool {
 
 /// Whether collapsing `h` (from(h) moves to `p`, then merges into to(h)) keeps
 /// the triangles facing the same way, of acceptable quality, following the
-/// reference, and each of its new edges no longer than 4/3 of its own target
-/// in `max_edge` (the bound the split pass applies, so that no collapse makes
-/// an edge to split again; where the target grows away from the collapsed
-/// edge, its own target would refuse collapses the new edges allow); `None`:
-/// no bound.
+/// reference, and each new edge no longer than 4/3 of its own target in
+/// `max_edge` (the split pass's bound); `None`: no length bound.
 pub(super) fn collapse_geometry_ok(
     m: &HalfedgeMesh,
     h: u32,
