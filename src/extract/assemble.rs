@@ -20,7 +20,7 @@ use crate::volume::{Geometry, LabelId};
 
 /// Builds the mesh from the parts.
 pub(crate) fn assemble(
-    parts: Vec<Part>,
+    mut parts: Vec<Part>,
     faces: Option<&CoarseFaces>,
     lat: Lattice,
     labels: Vec<LabelInfo>,
@@ -43,6 +43,9 @@ pub(crate) fn assemble(
                 .collect();
             k.sort_unstable();
             k.dedup();
+            // (the triangles name each key about six times: the rest of
+            // the buffer would stay allocated until the mesh is built)
+            k.shrink_to_fit();
             k
         })
         .collect();
@@ -99,33 +102,35 @@ pub(crate) fn assemble(
         })
         .collect();
 
+    // every part's triangles go straight to their place in the output, and
+    // the part's own (wider) copy is freed as soon as it is read
     let mirrored = geometry.is_mirroring();
-    let per_part: Vec<(Vec<[u32; 3]>, Vec<u32>)> = parts
-        .par_iter()
-        .enumerate()
-        .map(|(pi, p)| {
-            let tris = p
-                .tris
-                .iter()
-                .map(|t| {
-                    let t = t.map(|r| resolve(r, pi));
-                    if mirrored { [t[0], t[2], t[1]] } else { t }
-                })
-                .collect();
-            let ids = p
-                .pairs
-                .iter()
-                .map(|c| pairs.binary_search(c).expect("pair collected") as u32)
-                .collect();
-            (tris, ids)
-        })
-        .collect();
-    let mut triangles = Vec::new();
-    let mut triangle_patch = Vec::new();
-    for (t, ids) in per_part {
-        triangles.extend(t);
-        triangle_patch.extend(ids);
+    let n_tris: usize = parts.iter().map(|p| p.tris.len()).sum();
+    let mut triangles = vec![[0u32; 3]; n_tris];
+    let mut triangle_patch = vec![0u32; n_tris];
+    let mut tri_rest = triangles.as_mut_slice();
+    let mut patch_rest = triangle_patch.as_mut_slice();
+    let mut slots = Vec::with_capacity(parts.len());
+    for p in &parts {
+        let (t, tr) = std::mem::take(&mut tri_rest).split_at_mut(p.tris.len());
+        let (q, qr) = std::mem::take(&mut patch_rest).split_at_mut(p.tris.len());
+        slots.push((t, q));
+        tri_rest = tr;
+        patch_rest = qr;
     }
+    parts
+        .par_iter_mut()
+        .zip(slots)
+        .enumerate()
+        .for_each(|(pi, (p, (out_tris, out_patch)))| {
+            for (o, t) in out_tris.iter_mut().zip(std::mem::take(&mut p.tris)) {
+                let t = t.map(|r| resolve(r, pi));
+                *o = if mirrored { [t[0], t[2], t[1]] } else { t };
+            }
+            for (o, c) in out_patch.iter_mut().zip(std::mem::take(&mut p.pairs)) {
+                *o = pairs.binary_search(&c).expect("pair collected") as u32;
+            }
+        });
 
     let chords: Vec<(u32, u32, Vec<LabelId>)> = parts
         .iter()
@@ -157,6 +162,9 @@ pub(crate) fn assemble(
         })
         .collect();
     dissolve::dissolve_straight(&lattice, &mut triangles, &mut triangle_patch, &junctions);
+    drop(lattice);
+    triangles.shrink_to_fit();
+    triangle_patch.shrink_to_fit();
     let positions: Vec<DVec3> = positions
         .par_iter()
         .map(|&p| geometry.index_to_physical(p))

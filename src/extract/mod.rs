@@ -89,6 +89,17 @@ pub(crate) struct Part {
     pub chords: Vec<Chord>,
 }
 
+impl Part {
+    /// Gives back what the buffers grew beyond their contents (parts wait,
+    /// all of them at once, until they are merged).
+    pub(crate) fn shrink_to_fit(&mut self) {
+        self.tris.shrink_to_fit();
+        self.pairs.shrink_to_fit();
+        self.centroids.shrink_to_fit();
+        self.chords.shrink_to_fit();
+    }
+}
+
 /// A piece `a – b` of a junction curve and the labels around it.
 pub(crate) struct Chord {
     pub a: u64,

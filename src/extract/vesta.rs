@@ -361,6 +361,7 @@ pub(crate) fn coarse_slab(ctx: &Ctx, k0: i32, k1: i32) -> Part {
             }
         }
     }
+    part.shrink_to_fit();
     part
 }
 
@@ -500,6 +501,7 @@ pub(crate) fn refined_cells(ctx: &Ctx, cells: &[[i32; 3]]) -> Part {
         secs.reset();
         refined_cell(ctx, &mut part, &mut secs, c);
     }
+    part.shrink_to_fit();
     part
 }
 

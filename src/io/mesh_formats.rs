@@ -41,8 +41,6 @@
 use std::io::{self, Write};
 use std::path::Path;
 
-use glam::DVec3;
-
 use super::mesh_ply::{check_writable, one_line, patch_values};
 use super::{Space, atomic_write_with};
 use crate::error::{Error, Result};
@@ -205,19 +203,10 @@ pub enum VtpEncoding {
     Base64,
 }
 
-/// One array of a `.vtp` file: name, VTK type, components, and its values
-/// as little-endian bytes (binary) or text (ascii).
-struct VtpArray {
-    name: &'static str,
-    vtk_type: &'static str,
-    components: usize,
-    bytes: Vec<u8>,
-    text: String,
-}
-
-/// Values of one type, encoded both ways lazily by the caller's choice.
+/// Values of one type, as a `.vtp` file writes them.
 trait VtpValue: Copy + std::fmt::Display {
     const TYPE: &'static str;
+    const SIZE: usize;
     fn push_le(self, out: &mut Vec<u8>);
 }
 
@@ -225,6 +214,7 @@ macro_rules! vtp_value {
     ($t:ty, $name:literal) => {
         impl VtpValue for $t {
             const TYPE: &'static str = $name;
+            const SIZE: usize = std::mem::size_of::<$t>();
             fn push_le(self, out: &mut Vec<u8>) {
                 out.extend_from_slice(&self.to_le_bytes());
             }
@@ -235,80 +225,125 @@ vtp_value!(f32, "Float32");
 vtp_value!(i32, "Int32");
 vtp_value!(i64, "Int64");
 
-fn vtp_array<T: VtpValue>(
+/// One array of a `.vtp` file, made value by value as it is written (so
+/// that no array of a large mesh is ever held in memory whole, twice over
+/// with its encoding).
+trait VtpArray {
+    fn name(&self) -> &'static str;
+    fn vtk_type(&self) -> &'static str;
+    fn components(&self) -> usize;
+    /// Bytes of the raw little-endian values.
+    fn byte_len(&self) -> usize;
+    /// Values `range`, little-endian, appended to `out`.
+    fn le_bytes(&self, range: std::ops::Range<usize>, out: &mut Vec<u8>);
+    /// Every value as text, three tuples to a line.
+    fn write_text(&self, w: &mut dyn Write) -> io::Result<()>;
+    /// How many values.
+    fn len(&self) -> usize;
+}
+
+/// A [`VtpArray`] of `len` values, value `i` being `at(i)`.
+struct Column<T, F> {
     name: &'static str,
     components: usize,
-    values: &[T],
-    enc: VtpEncoding,
-) -> VtpArray {
-    let (mut bytes, mut text) = (Vec::new(), String::new());
-    match enc {
-        VtpEncoding::Base64 => values.iter().for_each(|v| v.push_le(&mut bytes)),
-        VtpEncoding::Ascii => {
-            use std::fmt::Write as _;
-            for (i, v) in values.iter().enumerate() {
-                let sep = if i % (3 * components.max(1)) == 0 {
-                    "\n"
-                } else {
-                    " "
-                };
-                let _ = write!(text, "{sep}{v}");
-            }
+    len: usize,
+    at: F,
+    _value: std::marker::PhantomData<T>,
+}
+
+impl<T: VtpValue, F: Fn(usize) -> T> VtpArray for Column<T, F> {
+    fn name(&self) -> &'static str {
+        self.name
+    }
+    fn vtk_type(&self) -> &'static str {
+        T::TYPE
+    }
+    fn components(&self) -> usize {
+        self.components
+    }
+    fn byte_len(&self) -> usize {
+        self.len * T::SIZE
+    }
+    fn le_bytes(&self, range: std::ops::Range<usize>, out: &mut Vec<u8>) {
+        out.reserve(range.len() * T::SIZE);
+        for i in range {
+            (self.at)(i).push_le(out);
         }
     }
-    VtpArray {
-        name,
-        vtk_type: T::TYPE,
-        components,
-        bytes,
-        text,
+    fn write_text(&self, w: &mut dyn Write) -> io::Result<()> {
+        let line = 3 * self.components.max(1);
+        for i in 0..self.len {
+            let sep = if i % line == 0 { "\n" } else { " " };
+            write!(w, "{sep}{}", (self.at)(i))?;
+        }
+        Ok(())
+    }
+    fn len(&self) -> usize {
+        self.len
     }
 }
 
-fn vtp_arrays(mesh: &InterfaceMesh, enc: VtpEncoding) -> Result<Vec<VtpArray>> {
+/// The array `name` of `len` values, `components` to a tuple, value `i`
+/// being `at(i)`.
+fn column<'a, T: VtpValue + 'a>(
+    name: &'static str,
+    components: usize,
+    len: usize,
+    at: impl Fn(usize) -> T + 'a,
+) -> Box<dyn VtpArray + 'a> {
+    Box::new(Column {
+        name,
+        components,
+        len,
+        at,
+        _value: std::marker::PhantomData,
+    })
+}
+
+/// The array `name` holding `values`.
+fn vtp_array<'a, T: VtpValue + 'a>(
+    name: &'static str,
+    components: usize,
+    values: &'a [T],
+) -> Box<dyn VtpArray + 'a> {
+    column(name, components, values.len(), move |i| values[i])
+}
+
+fn vtp_arrays(mesh: &InterfaceMesh) -> Result<Vec<Box<dyn VtpArray + '_>>> {
     let values = patch_values(mesh)?;
-    let points: Vec<f32> = mesh
-        .positions
-        .iter()
-        .flat_map(|p: &DVec3| p.to_array().map(|c| c as f32))
-        .collect();
+    let (pos, tris, tp) = (&mesh.positions, &mesh.triangles, &mesh.triangle_patch);
+    let n = tris.len();
     // Int32 wherever the offsets fit it (half the bytes of Int64; VTK reads
     // either)
-    let polys = if 3 * mesh.triangles.len() <= i32::MAX as usize {
-        let conn: Vec<i32> = mesh.triangles.iter().flatten().map(|&v| v as i32).collect();
-        let offsets: Vec<i32> = (1..=mesh.triangles.len() as i32).map(|t| 3 * t).collect();
+    let polys = if 3 * n <= i32::MAX as usize {
         [
-            vtp_array("connectivity", 1, &conn, enc),
-            vtp_array("offsets", 1, &offsets, enc),
+            column("connectivity", 1, 3 * n, move |i| tris[i / 3][i % 3] as i32),
+            column("offsets", 1, n, |t| 3 * (t as i32 + 1)),
         ]
     } else {
-        let conn: Vec<i64> = mesh
-            .triangles
-            .iter()
-            .flatten()
-            .map(|&v| i64::from(v))
-            .collect();
-        let offsets: Vec<i64> = (1..=mesh.triangles.len() as i64).map(|t| 3 * t).collect();
         [
-            vtp_array("connectivity", 1, &conn, enc),
-            vtp_array("offsets", 1, &offsets, enc),
+            column("connectivity", 1, 3 * n, move |i| {
+                i64::from(tris[i / 3][i % 3])
+            }),
+            column("offsets", 1, n, |t| 3 * (t as i64 + 1)),
         ]
     };
-    let tp = &mesh.triangle_patch;
-    let label_a: Vec<i32> = tp.iter().map(|&p| values[p as usize][0]).collect();
-    let label_b: Vec<i32> = tp.iter().map(|&p| values[p as usize][1]).collect();
-    let patch: Vec<i32> = tp
-        .iter()
-        .map(|&p| i32::try_from(p).unwrap_or(i32::MAX))
-        .collect();
     let [conn, offsets] = polys;
+    let label = move |side: usize| {
+        let values = values.clone();
+        move |t: usize| values[tp[t] as usize][side]
+    };
     Ok(vec![
-        vtp_array("Points", 3, &points, enc),
+        column("Points", 3, 3 * pos.len(), move |i| {
+            pos[i / 3][i % 3] as f32
+        }),
         conn,
         offsets,
-        vtp_array("label_a", 1, &label_a, enc),
-        vtp_array("label_b", 1, &label_b, enc),
-        vtp_array("patch", 1, &patch, enc),
+        column("label_a", 1, n, label(0)),
+        column("label_b", 1, n, label(1)),
+        column("patch", 1, n, move |t| {
+            i32::try_from(tp[t]).unwrap_or(i32::MAX)
+        }),
     ])
 }
 
@@ -317,11 +352,11 @@ fn b64_len(n: usize) -> usize {
     n.div_ceil(3) * 4
 }
 
-/// Standard base64 with padding.
-fn base64(bytes: &[u8]) -> Vec<u8> {
+/// Standard base64 with padding, appended to `out`.
+fn base64_into(bytes: &[u8], out: &mut Vec<u8>) {
     const ABC: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let quad = |n: u32| [18, 12, 6, 0].map(|s| ABC[(n >> s) as usize & 63]);
-    let mut out = Vec::with_capacity(b64_len(bytes.len()));
+    out.reserve(b64_len(bytes.len()));
     let chunks = bytes.chunks_exact(3);
     let tail = chunks.remainder();
     for c in chunks {
@@ -334,24 +369,55 @@ fn base64(bytes: &[u8]) -> Vec<u8> {
         q[tail.len() + 1..].fill(b'=');
         out.extend_from_slice(&q);
     }
-    out
+}
+
+/// Values per piece of an appended array: a multiple of 3, so that every
+/// piece but the last is a whole number of base64 quads and the pieces
+/// encode as the whole would.
+const B64_PIECE: usize = 3 * 8192;
+
+/// Writes array `a` as appended base64 data: its byte count (UInt64), then
+/// its values, encoded piece by piece.
+fn write_appended(w: &mut dyn Write, a: &dyn VtpArray) -> io::Result<()> {
+    let mut raw = Vec::new();
+    let mut text = Vec::new();
+    base64_into(&(a.byte_len() as u64).to_le_bytes(), &mut text);
+    w.write_all(&text)?;
+    for start in (0..a.len()).step_by(B64_PIECE) {
+        raw.clear();
+        text.clear();
+        a.le_bytes(start..(start + B64_PIECE).min(a.len()), &mut raw);
+        base64_into(&raw, &mut text);
+        w.write_all(&text)?;
+    }
+    Ok(())
 }
 
 /// The `<DataArray …>` element; `offset` is used for appended data.
-fn data_array(w: &mut dyn Write, a: &VtpArray, offset: usize, enc: VtpEncoding) -> io::Result<()> {
-    let comps = if a.components > 1 {
-        format!(" NumberOfComponents=\"{}\"", a.components)
+fn data_array(
+    w: &mut dyn Write,
+    a: &dyn VtpArray,
+    offset: usize,
+    enc: VtpEncoding,
+) -> io::Result<()> {
+    let comps = if a.components() > 1 {
+        format!(" NumberOfComponents=\"{}\"", a.components())
     } else {
         String::new()
     };
     write!(
         w,
         "        <DataArray type=\"{}\" Name=\"{}\"{comps}",
-        a.vtk_type, a.name
+        a.vtk_type(),
+        a.name()
     )?;
     match enc {
         VtpEncoding::Base64 => writeln!(w, " format=\"appended\" offset=\"{offset}\"/>"),
-        VtpEncoding::Ascii => writeln!(w, " format=\"ascii\">{}\n        </DataArray>", a.text),
+        VtpEncoding::Ascii => {
+            write!(w, " format=\"ascii\">")?;
+            a.write_text(w)?;
+            writeln!(w, "\n        </DataArray>")
+        }
     }
 }
 
@@ -374,7 +440,7 @@ fn write_vtp_body(
     w: &mut dyn Write,
     mesh: &InterfaceMesh,
     piece: &VtpPiece<'_>,
-    arrays: &[VtpArray],
+    arrays: &[Box<dyn VtpArray + '_>],
     enc: VtpEncoding,
 ) -> io::Result<()> {
     writeln!(
@@ -404,12 +470,12 @@ fn write_vtp_body(
     let mut at = 0;
     for a in arrays {
         offsets.push(at);
-        at += b64_len(8) + b64_len(a.bytes.len());
+        at += b64_len(8) + b64_len(a.byte_len());
     }
     for (tag, attrs, range) in piece.groups {
         writeln!(w, "      <{tag}{attrs}>")?;
         for i in range.clone() {
-            data_array(w, &arrays[i], offsets[i], enc)?;
+            data_array(w, arrays[i].as_ref(), offsets[i], enc)?;
         }
         writeln!(w, "      </{tag}>")?;
     }
@@ -417,8 +483,7 @@ fn write_vtp_body(
     if enc == VtpEncoding::Base64 {
         write!(w, "  <AppendedData encoding=\"base64\">\n   _")?;
         for a in arrays {
-            w.write_all(&base64(&(a.bytes.len() as u64).to_le_bytes()))?;
-            w.write_all(&base64(&a.bytes))?;
+            write_appended(w, a.as_ref())?;
         }
         writeln!(w, "\n  </AppendedData>")?;
     }
@@ -438,7 +503,7 @@ pub fn write_vtp_in(
     space: Space,
 ) -> Result<()> {
     check_writable(mesh)?;
-    let arrays = vtp_arrays(mesh, encoding)?;
+    let arrays = vtp_arrays(mesh)?;
     let piece = VtpPiece {
         space,
         points: mesh.vertex_count(),
@@ -526,13 +591,13 @@ pub fn write_junctions_vtp(
         .collect();
     let vid: Vec<i64> = vid;
     let arrays = vec![
-        vtp_array("Points", 3, &points, encoding),
-        vtp_array("connectivity", 1, &conn, encoding),
-        vtp_array("offsets", 1, &offsets, encoding),
-        vtp_array("vid", 1, &vid, encoding),
-        vtp_array("curve", 1, &curve, encoding),
-        vtp_array("label_count", 1, &label_count, encoding),
-        vtp_array("labels", width, &labels, encoding),
+        vtp_array("Points", 3, &points),
+        vtp_array("connectivity", 1, &conn),
+        vtp_array("offsets", 1, &offsets),
+        vtp_array("vid", 1, &vid),
+        vtp_array("curve", 1, &curve),
+        vtp_array("label_count", 1, &label_count),
+        vtp_array("labels", width, &labels),
     ];
     let piece = VtpPiece {
         space,
@@ -547,4 +612,27 @@ pub fn write_junctions_vtp(
         ],
     };
     atomic_write_with(path, |w| write_vtp_body(w, mesh, &piece, &arrays, encoding))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base64_matches_rfc4648_vectors() {
+        for (raw, enc) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            let mut out = Vec::new();
+            base64_into(raw.as_bytes(), &mut out);
+            assert_eq!(out, enc.as_bytes(), "{raw}");
+            assert_eq!(b64_len(raw.len()), enc.len());
+        }
+    }
 }

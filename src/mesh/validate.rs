@@ -173,8 +173,9 @@ pub fn validate(mesh: &InterfaceMesh, opts: &Options) -> Report {
         Err(report) => return report,
     };
     let stars = Stars::new(mesh);
-    let local = check_local(mesh, &stars);
-    let (orientation, labels) = check_component_orientation(mesh, &local.unions);
+    let mut sides = Dsu::new(2 * mesh.triangles.len());
+    let local = check_local(mesh, &stars, &mut sides);
+    let (orientation, labels) = check_component_orientation(mesh, sides);
     report.checks.push(local.open);
     report.checks.push(local.orient);
     report.checks.push(local.fans);
@@ -503,24 +504,40 @@ impl LocalFindings {
 /// of its surface triangles, running opposite ways; around each vertex, each
 /// label's triangles form one fan. Also collects which triangle sides
 /// (side `2t` = lower label, `2t + 1` = higher) are connected across edges.
-fn check_local(mesh: &InterfaceMesh, stars: &Stars) -> LocalFindings {
+fn check_local(mesh: &InterfaceMesh, stars: &Stars, sides: &mut Dsu) -> LocalFindings {
     let n = mesh.positions.len();
     let chunk = (n / 256).max(1024);
-    (0..n.div_ceil(chunk))
-        .into_par_iter()
-        .map(|c| {
-            let mut f = LocalFindings::new();
-            let mut edges: Vec<(u32, u32, i8)> = Vec::new();
-            let mut sides: Vec<(LabelId, i8, u32)> = Vec::new();
-            let mut fan: Vec<(LabelId, u32, u32)> = Vec::new();
-            for u in c * chunk..((c + 1) * chunk).min(n) {
-                check_vertex(
-                    mesh, stars, u as u32, &mut f, &mut edges, &mut sides, &mut fan,
-                );
-            }
-            f
-        })
-        .reduce(LocalFindings::new, LocalFindings::merge)
+    let chunks = n.div_ceil(chunk);
+    // a few chunks per thread at a time, their side pairs merged before
+    // the next ones are found: the pairs (about one per triangle corner)
+    // never all exist at once
+    let batch = 4 * rayon::current_num_threads().max(1);
+    let mut found = LocalFindings::new();
+    for first in (0..chunks).step_by(batch) {
+        let part = (first..(first + batch).min(chunks))
+            .into_par_iter()
+            .map(|c| {
+                let mut f = LocalFindings::new();
+                let mut edges: Vec<(u32, u32, i8)> = Vec::new();
+                let mut sides: Vec<(LabelId, i8, u32)> = Vec::new();
+                let mut fan: Vec<(LabelId, u32, u32)> = Vec::new();
+                for u in c * chunk..((c + 1) * chunk).min(n) {
+                    check_vertex(
+                        mesh, stars, u as u32, &mut f, &mut edges, &mut sides, &mut fan,
+                    );
+                }
+                f
+            })
+            .reduce(LocalFindings::new, LocalFindings::merge);
+        for &(a, b) in &part.unions {
+            sides.union(a, b);
+        }
+        found = found.merge(LocalFindings {
+            unions: Vec::new(),
+            ..part
+        });
+    }
+    found
 }
 
 fn check_vertex(
@@ -628,16 +645,9 @@ struct Component {
 }
 
 /// Connected components of each label's surface and their orientation.
-fn check_component_orientation(
-    mesh: &InterfaceMesh,
-    unions: &[(u32, u32)],
-) -> (Check, Vec<LabelSurface>) {
+fn check_component_orientation(mesh: &InterfaceMesh, mut dsu: Dsu) -> (Check, Vec<LabelSurface>) {
     let mut check = Check::new("surfaces face away from their label");
     let n_sides = 2 * mesh.triangles.len();
-    let mut dsu = Dsu::new(n_sides);
-    for &(a, b) in unions {
-        dsu.union(a, b);
-    }
     let centre = bbox_centre(&mesh.positions);
     let side_label = |side: u32| {
         mesh.patches[mesh.triangle_patch[(side / 2) as usize] as usize].labels[(side % 2) as usize]
@@ -652,13 +662,14 @@ fn check_component_orientation(
         tri.map(|v| mesh.positions[v as usize] - centre)
     };
     // component of every side, and per-component volume and box
-    let mut comp_of_root = vec![u32::MAX; n_sides];
+    // (the root of a set is its smallest side, so it is numbered before the
+    // other sides of its set)
     let mut comp_of_side = vec![0u32; n_sides];
     let mut comps: Vec<Component> = Vec::new();
     for side in 0..n_sides as u32 {
-        let r = dsu.find(side) as usize;
-        if comp_of_root[r] == u32::MAX {
-            comp_of_root[r] = comps.len() as u32;
+        let r = dsu.find(side);
+        if r == side {
+            comp_of_side[side as usize] = comps.len() as u32;
             comps.push(Component {
                 label: side_label(side),
                 volume: 0.0,
@@ -667,7 +678,7 @@ fn check_component_orientation(
                 hi: DVec3::splat(f64::MIN),
             });
         }
-        let ci = comp_of_root[r];
+        let ci = comp_of_side[r as usize];
         comp_of_side[side as usize] = ci;
         let [a, b, c] = oriented(side);
         let comp = &mut comps[ci as usize];
@@ -676,6 +687,7 @@ fn check_component_orientation(
         comp.lo = comp.lo.min(a).min(b).min(c);
         comp.hi = comp.hi.max(a).max(b).max(c);
     }
+    drop(dsu);
     let labels = mesh.labels_with_patches();
     let mut comps_of: Vec<Vec<u32>> =
         vec![Vec::new(); labels.last().map_or(0, |&l| l as usize + 1)];
@@ -874,18 +886,19 @@ fn nesting_depths(
         }
         return depth;
     }
-    let candidates: Vec<(u32, [DVec3; 3])> = sides
+    // sides only (4 bytes each): their triangles are looked up when needed
+    let candidates: Vec<u32> = sides
         .iter()
-        .filter(|&&sd| is_candidate(sd))
-        .map(|&sd| (comp_of_side[sd as usize], oriented(sd)))
+        .copied()
+        .filter(|&sd| is_candidate(sd))
         .collect();
-    let roots: Vec<u32> = candidates.iter().map(|x| x.0).collect();
-    let tris: Vec<[DVec3; 3]> = candidates.into_iter().map(|x| x.1).collect();
-    let candidates: Vec<u32> = (0..tris.len() as u32).collect();
-    let (lo, hi) = candidates.iter().fold(
+    let tri = |i: u32| oriented(candidates[i as usize]);
+    let root = |i: u32| comp_of_side[candidates[i as usize] as usize];
+    let ids = 0..candidates.len() as u32;
+    let (lo, hi) = ids.clone().fold(
         (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
-        |(lo, hi), &i| {
-            let t = &tris[i as usize];
+        |(lo, hi), i| {
+            let t = tri(i);
             (
                 lo.min(t[0]).min(t[1]).min(t[2]),
                 hi.max(t[0]).max(t[1]).max(t[2]),
@@ -895,14 +908,15 @@ fn nesting_depths(
     // cells about as wide as the triangles (in y and z): each triangle is
     // listed in a few cells, and a ray meets only the triangles of its cell
     // (cells of √(triangles) per axis listed each triangle in 20 to 30)
-    let mean_size = tris
-        .iter()
-        .map(|t| {
+    let mean_size = ids
+        .clone()
+        .map(|i| {
+            let t = tri(i);
             let (tlo, thi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
             (thi.y - tlo.y).max(thi.z - tlo.z)
         })
         .sum::<f64>()
-        / tris.len().max(1) as f64;
+        / candidates.len().max(1) as f64;
     let span = (hi.y - lo.y).max(hi.z - lo.z);
     let n = if mean_size > 0.0 && span.is_finite() {
         ((span / mean_size).ceil() as usize).clamp(1, 1024)
@@ -921,13 +935,13 @@ fn nesting_depths(
         )
     };
     let cells_of = |i: u32| {
-        let t = &tris[i as usize];
+        let t = tri(i);
         let (tlo, thi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
         (bucket(tlo.y, tlo.z), bucket(thi.y, thi.z))
     };
     // compressed rows: triangles per (y, z) bucket
     let mut start = vec![0u32; n * n + 1];
-    for &i in &candidates {
+    for i in ids.clone() {
         let ((y0, z0), (y1, z1)) = cells_of(i);
         for z in z0..=z1 {
             for y in y0..=y1 {
@@ -940,7 +954,7 @@ fn nesting_depths(
     }
     let mut fill = start.clone();
     let mut grid = vec![0u32; start[n * n] as usize];
-    for &i in &candidates {
+    for i in ids {
         let ((y0, z0), (y1, z1)) = cells_of(i);
         for z in z0..=z1 {
             for y in y0..=y1 {
@@ -963,11 +977,11 @@ fn nesting_depths(
                 let c = by + n * bz;
                 let mut ambiguous = false;
                 for &i in &grid[start[c] as usize..start[c + 1] as usize] {
-                    let root = roots[i as usize];
+                    let root = root(i);
                     if root == list[ci].0 {
                         continue;
                     }
-                    match ray_crosses(p, &tris[i as usize]) {
+                    match ray_crosses(p, &tri(i)) {
                         Some(true) => *crossings.entry(root).or_insert(0) += 1,
                         Some(false) => {}
                         None => ambiguous = true,
