@@ -10,56 +10,35 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::PackedPart;
 use super::coarse_faces::CoarseFaces;
 use super::dissolve;
 use super::lattice::Lattice;
 use super::vesta::{TAG_CENTROID, TAG_KEY, TAG_MASK};
-use super::{Chord, Part};
 use crate::mesh::{InterfaceMesh, JunctionCurve, LabelInfo, Patch};
 use crate::volume::{Geometry, LabelId};
 
 /// Builds the mesh from the parts.
 pub(crate) fn assemble(
-    mut parts: Vec<Part>,
+    mut parts: Vec<PackedPart>,
     faces: Option<&CoarseFaces>,
     lat: Lattice,
     labels: Vec<LabelInfo>,
     geometry: Geometry,
 ) -> InterfaceMesh {
     let n_face = faces.map_or(0, |f| f.count()) as usize;
-    // Lattice keys referenced anywhere: unique per part first (cheap, local),
-    // then merged; each part maps its local keys to global ids once.
-    let local_keys: Vec<Vec<u64>> = parts
+    // Lattice keys referenced anywhere (each part names its own once).
+    let is_key = |r: &&u64| **r & TAG_MASK == TAG_KEY;
+    let n_local_keys: usize = parts
         .par_iter()
-        .map(|p| {
-            let mut k: Vec<u64> = p
-                .tris
-                .iter()
-                .flatten()
-                .copied()
-                .chain(p.chords.iter().flat_map(|c| [c.a, c.b]))
-                .filter(|r| r & TAG_MASK == TAG_KEY)
-                .map(|r| r & !TAG_MASK)
-                .collect();
-            k.sort_unstable();
-            k.dedup();
-            // (the triangles name each key about six times: the rest of
-            // the buffer would stay allocated until the mesh is built)
-            k.shrink_to_fit();
-            k
-        })
-        .collect();
-    let mut keys: Vec<u64> = local_keys.concat();
+        .map(|p| p.refs.iter().filter(is_key).count())
+        .sum();
+    let mut keys: Vec<u64> = Vec::with_capacity(n_local_keys);
+    for p in &parts {
+        keys.extend(p.refs.iter().filter(is_key).map(|r| r & !TAG_MASK));
+    }
     keys.par_sort_unstable();
     keys.dedup();
-    let key_ids: Vec<Vec<u32>> = local_keys
-        .par_iter()
-        .map(|lk| {
-            lk.iter()
-                .map(|k| (n_face + keys.binary_search(k).expect("key collected")) as u32)
-                .collect()
-        })
-        .collect();
     let mut centroid_base = Vec::with_capacity(parts.len());
     let mut acc = n_face + keys.len();
     for p in &parts {
@@ -67,33 +46,49 @@ pub(crate) fn assemble(
         acc += p.centroids.len();
     }
     let total = acc;
+    // every part's references as mesh vertex ids
+    let ref_ids: Vec<Vec<u32>> = parts
+        .par_iter_mut()
+        .enumerate()
+        .map(|(pi, p)| {
+            std::mem::take(&mut p.refs)
+                .into_iter()
+                .map(|r| match r & TAG_MASK {
+                    0 => r as u32,
+                    TAG_KEY => {
+                        let k = keys.binary_search(&(r & !TAG_MASK));
+                        (n_face + k.expect("key collected")) as u32
+                    }
+                    TAG_CENTROID => (centroid_base[pi] + (r & !TAG_MASK) as usize) as u32,
+                    _ => unreachable!("bad vertex tag"),
+                })
+                .collect()
+        })
+        .collect();
 
     let mut positions = Vec::with_capacity(total);
     if let Some(f) = faces {
         positions.extend(f.centres());
     }
     positions.extend(keys.iter().map(|&k| lat.key_position(k)));
-    for p in &parts {
-        positions.extend_from_slice(&p.centroids);
+    let on_lattice = positions.len();
+    drop(keys);
+    for p in &mut parts {
+        positions.extend_from_slice(&std::mem::take(&mut p.centroids));
     }
 
-    let resolve = |r: u64, part: usize| -> u32 {
-        match r & TAG_MASK {
-            0 => r as u32,
-            TAG_KEY => {
-                let local = &local_keys[part];
-                key_ids[part][local
-                    .binary_search(&(r & !TAG_MASK))
-                    .expect("key collected")]
-            }
-            TAG_CENTROID => (centroid_base[part] + (r & !TAG_MASK) as usize) as u32,
-            _ => unreachable!("bad vertex tag"),
-        }
-    };
-
-    // Patches.
-    let mut pairs: Vec<u32> = parts.iter().flat_map(|p| p.pairs.iter().copied()).collect();
-    pairs.par_sort_unstable();
+    // Patches (distinct per part first: a part has a few pairs, the whole
+    // output one per triangle).
+    let mut pairs: Vec<u32> = parts
+        .par_iter()
+        .flat_map_iter(|p| {
+            let mut own = p.pairs.clone();
+            own.sort_unstable();
+            own.dedup();
+            own
+        })
+        .collect();
+    pairs.sort_unstable();
     pairs.dedup();
     let patches: Vec<Patch> = pairs
         .iter()
@@ -103,7 +98,7 @@ pub(crate) fn assemble(
         .collect();
 
     // every part's triangles go straight to their place in the output, and
-    // the part's own (wider) copy is freed as soon as it is read
+    // the part's own copy is freed as soon as it is read
     let mirrored = geometry.is_mirroring();
     let n_tris: usize = parts.iter().map(|p| p.tris.len()).sum();
     let mut triangles = vec![[0u32; 3]; n_tris];
@@ -120,11 +115,11 @@ pub(crate) fn assemble(
     }
     parts
         .par_iter_mut()
+        .zip(&ref_ids)
         .zip(slots)
-        .enumerate()
-        .for_each(|(pi, (p, (out_tris, out_patch)))| {
+        .for_each(|((p, ids), (out_tris, out_patch))| {
             for (o, t) in out_tris.iter_mut().zip(std::mem::take(&mut p.tris)) {
-                let t = t.map(|r| resolve(r, pi));
+                let t = t.map(|l| ids[l as usize]);
                 *o = if mirrored { [t[0], t[2], t[1]] } else { t };
             }
             for (o, c) in out_patch.iter_mut().zip(std::mem::take(&mut p.pairs)) {
@@ -132,37 +127,27 @@ pub(crate) fn assemble(
             }
         });
 
-    let chords: Vec<(u32, u32, Vec<LabelId>)> = parts
-        .iter()
-        .enumerate()
-        .flat_map(|(pi, p)| p.chords.iter().map(move |c| (pi, c)))
-        .map(|(pi, c): (usize, &Chord)| {
-            (
-                resolve(c.a, pi),
-                resolve(c.b, pi),
-                c.labels[..c.count as usize].to_vec(),
-            )
-        })
-        .collect();
+    let mut chords = Vec::with_capacity(parts.iter().map(|p| p.chords.len()).sum());
+    for (p, ids) in parts.iter_mut().zip(&ref_ids) {
+        chords.extend(std::mem::take(&mut p.chords).iter().map(|c| ResolvedChord {
+            a: ids[c.a as usize],
+            b: ids[c.b as usize],
+            labels: c.labels,
+            count: c.count,
+        }));
+    }
+    drop(parts);
+    drop(ref_ids);
 
-    let junctions = chain_junctions(positions.len(), &chords);
-    // exact lattice coordinates: coarse face centres from their (exact)
-    // index positions, lattice points from their keys, centroids none
-    let two_s = 2.0 * lat.s as f64;
-    let lattice: Vec<Option<[i32; 3]>> = (0..positions.len())
-        .map(|v| {
-            if v < n_face {
-                let p = (positions[v] + DVec3::splat(1.5)) * two_s;
-                Some(p.round().to_array().map(|c| c as i32))
-            } else if v < n_face + keys.len() {
-                Some(lat.unpack(keys[v - n_face]))
-            } else {
-                None
-            }
-        })
-        .collect();
+    let junctions = chain_junctions(positions.len(), chords);
+    // exact lattice coordinates, from the positions: coarse face centres and
+    // lattice points are (exact) multiples of 1 / 2s, centroids are not
+    let lattice = OnLattice {
+        positions: &positions,
+        count: on_lattice,
+        two_s: 2.0 * lat.s as f64,
+    };
     dissolve::dissolve_straight(&lattice, &mut triangles, &mut triangle_patch, &junctions);
-    drop(lattice);
     triangles.shrink_to_fit();
     triangle_patch.shrink_to_fit();
     let positions: Vec<DVec3> = positions
@@ -182,27 +167,65 @@ pub(crate) fn assemble(
     mesh
 }
 
+/// The first `count` vertices lie on the lattice, at exact multiples of
+/// `1 / two_s` from -1.5 (see [`Lattice::position`]).
+struct OnLattice<'a> {
+    positions: &'a [DVec3],
+    count: usize,
+    two_s: f64,
+}
+
+impl dissolve::LatticeCoords for OnLattice<'_> {
+    fn len(&self) -> usize {
+        self.positions.len()
+    }
+    #[inline]
+    fn at(&self, v: u32) -> Option<[i32; 3]> {
+        let v = v as usize;
+        (v < self.count).then(|| {
+            let p = (self.positions[v] + DVec3::splat(1.5)) * self.two_s;
+            p.round().to_array().map(|c| c as i32)
+        })
+    }
+}
+
+/// A junction chord between two mesh vertices, and the labels around it.
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) struct ResolvedChord {
+    pub a: u32,
+    pub b: u32,
+    pub labels: [LabelId; 4],
+    pub count: u8,
+}
+
+impl ResolvedChord {
+    fn labels(&self) -> &[LabelId] {
+        &self.labels[..self.count as usize]
+    }
+}
+
 /// Chains junction chords into polylines: curves end at corners (vertices where
 /// other than two chords meet, or where the set of labels changes) and the rest
 /// close into loops.
 pub(crate) fn chain_junctions(
     n_vertices: usize,
-    chords: &[(u32, u32, Vec<LabelId>)],
+    mut chords: Vec<ResolvedChord>,
 ) -> Vec<JunctionCurve> {
     if chords.is_empty() {
         return Vec::new();
     }
-    let mut chords: Vec<(u32, u32, Vec<LabelId>)> = chords
-        .iter()
-        .map(|(a, b, l)| (*a.min(b), *a.max(b), l.clone()))
-        .collect();
-    chords.sort();
+    for c in &mut chords {
+        (c.a, c.b) = (c.a.min(c.b), c.a.max(c.b));
+        // (unused label slots must not tell equal chords apart)
+        c.labels[c.count as usize..].fill(0);
+    }
+    chords.sort_unstable();
     chords.dedup();
     // adjacency: vertex -> chord ids (CSR)
     let mut degree = vec![0u32; n_vertices + 1];
-    for (a, b, _) in &chords {
-        degree[*a as usize] += 1;
-        degree[*b as usize] += 1;
+    for c in &chords {
+        degree[c.a as usize] += 1;
+        degree[c.b as usize] += 1;
     }
     let mut start = vec![0usize; n_vertices + 1];
     for v in 0..n_vertices {
@@ -210,8 +233,8 @@ pub(crate) fn chain_junctions(
     }
     let mut fill = start.clone();
     let mut adj = vec![0u32; start[n_vertices]];
-    for (i, (a, b, _)) in chords.iter().enumerate() {
-        for v in [*a, *b] {
+    for (i, c) in chords.iter().enumerate() {
+        for v in [c.a, c.b] {
             adj[fill[v as usize]] = i as u32;
             fill[v as usize] += 1;
         }
@@ -219,7 +242,7 @@ pub(crate) fn chain_junctions(
     let incident = |v: u32| &adj[start[v as usize]..start[v as usize + 1]];
     let is_corner = |v: u32| {
         let inc = incident(v);
-        inc.len() != 2 || chords[inc[0] as usize].2 != chords[inc[1] as usize].2
+        inc.len() != 2 || chords[inc[0] as usize].labels() != chords[inc[1] as usize].labels()
     };
     let mut used = vec![false; chords.len()];
     let mut curves = Vec::new();
@@ -229,8 +252,8 @@ pub(crate) fn chain_junctions(
         let mut c = first;
         loop {
             used[c as usize] = true;
-            let (a, b, _) = &chords[c as usize];
-            let next = if *a == v { *b } else { *a };
+            let ch = &chords[c as usize];
+            let next = if ch.a == v { ch.b } else { ch.a };
             verts.push(next);
             if next == from {
                 // a loop back to a corner stays open, with the corner at both
@@ -255,7 +278,7 @@ pub(crate) fn chain_junctions(
     };
     let mut corners: Vec<u32> = chords
         .iter()
-        .flat_map(|(a, b, _)| [*a, *b])
+        .flat_map(|c| [c.a, c.b])
         .filter(|&v| is_corner(v))
         .collect();
     corners.sort_unstable();
@@ -263,7 +286,7 @@ pub(crate) fn chain_junctions(
     for &v in &corners {
         for &c in incident(v) {
             if !used[c as usize] {
-                let labels = chords[c as usize].2.clone();
+                let labels = chords[c as usize].labels().to_vec();
                 let (verts, closed) = walk(v, c, &mut used);
                 curves.push(JunctionCurve {
                     vertices: verts,
@@ -275,8 +298,8 @@ pub(crate) fn chain_junctions(
     }
     for c in 0..chords.len() {
         if !used[c] {
-            let labels = chords[c].2.clone();
-            let (verts, closed) = walk(chords[c].0, c as u32, &mut used);
+            let labels = chords[c].labels().to_vec();
+            let (verts, closed) = walk(chords[c].a, c as u32, &mut used);
             curves.push(JunctionCurve {
                 vertices: verts,
                 closed,

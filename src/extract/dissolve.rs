@@ -26,12 +26,30 @@ const NONE: u32 = u32::MAX;
 /// A curve end or corner: never dissolved.
 const FIXED: u32 = u32::MAX - 1;
 
+/// Exact lattice coordinates of the vertices.
+pub(crate) trait LatticeCoords {
+    /// Number of vertices.
+    fn len(&self) -> usize;
+    /// The lattice coordinates of vertex `v` (`None`: not on the lattice,
+    /// never dissolved nor used as a segment end).
+    fn at(&self, v: u32) -> Option<[i32; 3]>;
+}
+
+impl LatticeCoords for [Option<[i32; 3]>] {
+    fn len(&self) -> usize {
+        <[_]>::len(self)
+    }
+    fn at(&self, v: u32) -> Option<[i32; 3]> {
+        self[v as usize]
+    }
+}
+
 /// Dissolves every vertex inside a straight segment (see the module docs).
-/// `lattice[v]` are the exact lattice coordinates of vertex `v` (`None`: not
-/// on the lattice, never dissolved nor used as a segment end). Returns which
-/// vertices were dissolved; `tris` and `patch` keep only the live triangles.
-pub(crate) fn dissolve_straight(
-    lattice: &[Option<[i32; 3]>],
+/// `lattice` gives the exact lattice coordinates of each vertex. Returns
+/// which vertices were dissolved; `tris` and `patch` keep only the live
+/// triangles.
+pub(crate) fn dissolve_straight<L: LatticeCoords + ?Sized>(
+    lattice: &L,
     tris: &mut Vec<[u32; 3]>,
     patch: &mut Vec<u32>,
     curves: &[JunctionCurve],
@@ -42,7 +60,7 @@ pub(crate) fn dissolve_straight(
     let mut dead = vec![false; n];
     let mut star: Vec<(u32, [u32; 3])> = Vec::with_capacity(16);
     for v in 0..n as u32 {
-        let Some(pv) = lattice[v as usize] else {
+        let Some(pv) = lattice.at(v) else {
             continue;
         };
         if curve_nb[v as usize][0] == FIXED {
@@ -119,9 +137,9 @@ struct Merge {
 /// along one straight line through it, and how they merge. Where two lines
 /// would do (a flat star of four triangles, straight both ways), the first
 /// one found is taken: either gives the same point set.
-fn straight_merge(
+fn straight_merge<L: LatticeCoords + ?Sized>(
     pv: [i32; 3],
-    lattice: &[Option<[i32; 3]>],
+    lattice: &L,
     star: &[(u32, [u32; 3])],
     patch: &[u32],
 ) -> Option<Merge> {
@@ -167,16 +185,16 @@ fn merge_along((u, w): (u32, u32), star: &[(u32, [u32; 3])], patch: &[u32]) -> O
 
 /// The pairs of neighbours of `v` (at `pv`) on a line through it, with `v`
 /// strictly between them, in the order of their ids.
-fn lines_through(
+fn lines_through<L: LatticeCoords + ?Sized>(
     pv: [i32; 3],
-    lattice: &[Option<[i32; 3]>],
+    lattice: &L,
     star: &[(u32, [u32; 3])],
 ) -> Vec<(u32, u32)> {
     let mut nbs: Vec<u32> = star.iter().flat_map(|&(_, [_, x, y])| [x, y]).collect();
     nbs.sort_unstable();
     nbs.dedup();
     let offset = |x: u32| -> Option<[i64; 3]> {
-        let p = lattice[x as usize]?;
+        let p = lattice.at(x)?;
         Some([0, 1, 2].map(|k| (p[k] - pv[k]) as i64))
     };
     let mut found = Vec::new();
@@ -271,7 +289,7 @@ mod tests {
     fn a_vertex_inside_a_straight_line_between_two_fans_goes() {
         let (lattice, mut tris) = strip();
         let mut patch = vec![0, 0, 1, 1];
-        let dead = dissolve_straight(&lattice, &mut tris, &mut patch, &[]);
+        let dead = dissolve_straight(lattice.as_slice(), &mut tris, &mut patch, &[]);
         assert_eq!(dead, vec![false, false, false, false, true]);
         assert_eq!(tris, vec![[2, 0, 1], [3, 1, 0]]);
         assert_eq!(patch, vec![0, 1]);
@@ -282,14 +300,14 @@ mod tests {
         let (lattice, tris0) = strip();
         let mut tris = tris0.clone();
         let mut patch = vec![0, 1, 1, 1];
-        let dead = dissolve_straight(&lattice, &mut tris, &mut patch, &[]);
+        let dead = dissolve_straight(lattice.as_slice(), &mut tris, &mut patch, &[]);
         assert!(dead.iter().all(|d| !d));
         assert_eq!(tris, tris0);
         let mut bent = lattice.clone();
         bent[4] = Some([2, 1, 0]);
         let mut tris = tris0.clone();
         let mut patch = vec![0, 0, 1, 1];
-        let dead = dissolve_straight(&bent, &mut tris, &mut patch, &[]);
+        let dead = dissolve_straight(bent.as_slice(), &mut tris, &mut patch, &[]);
         assert!(dead.iter().all(|d| !d));
     }
 
@@ -300,17 +318,17 @@ mod tests {
         let mut tris = tris0.clone();
         let mut patch = vec![0, 0, 1, 1];
         let ends = [curve(vec![4, 2], false)];
-        assert!(!dissolve_straight(&lattice, &mut tris, &mut patch, &ends)[4]);
+        assert!(!dissolve_straight(lattice.as_slice(), &mut tris, &mut patch, &ends)[4]);
         // vertex 4 inside the curve 0 – 4 – 1: it goes
         let mut tris = tris0.clone();
         let mut patch = vec![0, 0, 1, 1];
         let through = [curve(vec![0, 4, 1], false)];
-        assert!(dissolve_straight(&lattice, &mut tris, &mut patch, &through)[4]);
+        assert!(dissolve_straight(lattice.as_slice(), &mut tris, &mut patch, &through)[4]);
         // a curve turning at 4 (0 – 4 – 2) keeps it
         let mut tris = tris0.clone();
         let mut patch = vec![0, 0, 1, 1];
         let turning = [curve(vec![0, 4, 2], false)];
-        assert!(!dissolve_straight(&lattice, &mut tris, &mut patch, &turning)[4]);
+        assert!(!dissolve_straight(lattice.as_slice(), &mut tris, &mut patch, &turning)[4]);
     }
 
     #[test]
@@ -330,7 +348,7 @@ mod tests {
         lattice.push(Some([3, -5, 0])); // 6
         tris.extend([[6, 3, 0], [6, 4, 3], [6, 5, 4], [6, 1, 5]]);
         let mut patch = vec![0; 8];
-        let dead = dissolve_straight(&lattice, &mut tris, &mut patch, &[]);
+        let dead = dissolve_straight(lattice.as_slice(), &mut tris, &mut patch, &[]);
         assert_eq!(dead, vec![false, false, false, true, true, true, false]);
         assert_eq!(tris, vec![[2, 0, 1], [6, 1, 0]]);
     }
@@ -341,7 +359,7 @@ mod tests {
         let (mut lattice, mut tris) = strip();
         lattice[2] = Some([2, 3, 0]);
         let mut patch = vec![0, 0, 1, 1];
-        let dead = dissolve_straight(&lattice, &mut tris, &mut patch, &[]);
+        let dead = dissolve_straight(lattice.as_slice(), &mut tris, &mut patch, &[]);
         assert!(dead[4]);
         assert_eq!(tris, vec![[2, 0, 1], [3, 1, 0]]);
     }
@@ -351,7 +369,7 @@ mod tests {
         let (mut lattice, mut tris) = strip();
         lattice[4] = None;
         let mut patch = vec![0, 0, 1, 1];
-        let dead = dissolve_straight(&lattice, &mut tris, &mut patch, &[]);
+        let dead = dissolve_straight(lattice.as_slice(), &mut tris, &mut patch, &[]);
         assert!(dead.iter().all(|d| !d));
     }
 }

@@ -78,25 +78,55 @@ pub struct ExtractOptions {
     pub decompose: Decompose,
 }
 
-/// A piece of output produced by one task: triangles over tagged vertex
+/// A piece of output being produced by one task: triangles over tagged vertex
 /// references (coarse face id, lattice key or local centroid), their label
-/// pairs, new centroids and junction chords.
+/// pairs, new centroids and junction chords. A task reuses one `Part` as its
+/// scratch and hands on what it made [`pack`](Part::pack)ed.
 #[derive(Default)]
 pub(crate) struct Part {
     pub tris: Vec<[u64; 3]>,
     pub pairs: Vec<u32>,
     pub centroids: Vec<DVec3>,
     pub chords: Vec<Chord>,
+    refs: Vec<u64>,
 }
 
 impl Part {
-    /// Gives back what the buffers grew beyond their contents (parts wait,
-    /// all of them at once, until they are merged).
-    pub(crate) fn shrink_to_fit(&mut self) {
-        self.tris.shrink_to_fit();
-        self.pairs.shrink_to_fit();
-        self.centroids.shrink_to_fit();
-        self.chords.shrink_to_fit();
+    /// What was emitted since the last call, packed (every vertex reference
+    /// once, triangles and chords as indices into them: 12 rather than 24
+    /// bytes per triangle, in buffers of exactly their size, since all parts
+    /// wait until they are merged); the part is left empty for reuse, its
+    /// buffers kept.
+    pub(crate) fn pack(&mut self) -> PackedPart {
+        let refs = &mut self.refs;
+        refs.clear();
+        refs.extend(self.tris.iter().flatten());
+        refs.extend(self.chords.iter().flat_map(|c| [c.a, c.b]));
+        refs.sort_unstable();
+        refs.dedup();
+        let refs = &*refs;
+        let local = |r: u64| refs.binary_search(&r).expect("reference collected") as u32;
+        let packed = PackedPart {
+            refs: refs.to_vec(),
+            tris: self.tris.iter().map(|t| t.map(local)).collect(),
+            pairs: self.pairs.to_vec(),
+            centroids: self.centroids.to_vec(),
+            chords: self
+                .chords
+                .iter()
+                .map(|c| PackedChord {
+                    a: local(c.a),
+                    b: local(c.b),
+                    labels: c.labels,
+                    count: c.count,
+                })
+                .collect(),
+        };
+        self.tris.clear();
+        self.pairs.clear();
+        self.centroids.clear();
+        self.chords.clear();
+        packed
     }
 }
 
@@ -104,6 +134,24 @@ impl Part {
 pub(crate) struct Chord {
     pub a: u64,
     pub b: u64,
+    pub labels: [LabelId; 4],
+    pub count: u8,
+}
+
+/// A [`Part`] as it waits to be merged: `refs` are its vertex references,
+/// sorted, once each; triangles and chords index them.
+pub(crate) struct PackedPart {
+    pub refs: Vec<u64>,
+    pub tris: Vec<[u32; 3]>,
+    pub pairs: Vec<u32>,
+    pub centroids: Vec<DVec3>,
+    pub chords: Vec<PackedChord>,
+}
+
+/// A [`Chord`] in a [`PackedPart`].
+pub(crate) struct PackedChord {
+    pub a: u32,
+    pub b: u32,
     pub labels: [LabelId; 4],
     pub count: u8,
 }
@@ -149,16 +197,22 @@ pub fn extract(
             };
             let planes = dims.nz as i32 + 1;
             let slab = slab_size(planes);
-            let mut parts: Vec<Part> = (0..(planes + slab - 1) / slab)
+            let mut parts: Vec<PackedPart> = (0..(planes + slab - 1) / slab)
                 .into_par_iter()
-                .map(|b| vesta::coarse_slab(&ctx, b * slab, ((b + 1) * slab).min(planes)))
+                .map_init(Part::default, |part, b| {
+                    vesta::coarse_slab(&ctx, part, b * slab, ((b + 1) * slab).min(planes));
+                    part.pack()
+                })
                 .collect();
             let coarse_tris: usize = parts.iter().map(|p| p.tris.len()).sum();
             let coarse_chords: usize = parts.iter().map(|p| p.chords.len()).sum();
             parts.extend(
                 rv.refined_cells()
                     .par_chunks(32)
-                    .map(|cells| vesta::refined_cells(&ctx, cells))
+                    .map_init(Part::default, |part, cells| {
+                        vesta::refined_cells(&ctx, part, cells);
+                        part.pack()
+                    })
                     .collect::<Vec<_>>(),
             );
             if std::env::var_os("SEPTA_DEBUG_EXTRACT").is_some() {

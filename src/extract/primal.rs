@@ -8,27 +8,26 @@ use rayon::prelude::*;
 
 use super::lattice::Lattice;
 use super::vesta::{TAG_KEY, pair_code};
-use super::{Chord, Part};
+use super::{Chord, PackedPart, Part};
 use crate::preprocess::RefinedVolume;
 use crate::star::other_axes;
 use crate::volume::LabelId;
 
 /// Output parts: coarse faces by z plane, then refined voxels in order.
-pub(crate) fn primal_parts(rv: &RefinedVolume, lat: Lattice) -> Vec<Part> {
+pub(crate) fn primal_parts(rv: &RefinedVolume, lat: Lattice) -> Vec<PackedPart> {
     let dims = rv.dims();
-    let mut parts: Vec<Part> = (-1..=dims.nz as i32)
+    let mut parts: Vec<PackedPart> = (-1..=dims.nz as i32)
         .into_par_iter()
-        .map(|z| coarse_plane(rv, lat, z))
+        .map(|z| coarse_plane(rv, lat, z).pack())
         .collect();
     parts.extend(
         rv.refined_cells()
             .par_chunks(32)
-            .map(|cells| {
-                let mut part = Part::default();
+            .map_init(Part::default, |part, cells| {
                 for &c in cells {
-                    refined_faces(rv, lat, c, &mut part);
+                    refined_faces(rv, lat, c, part);
                 }
-                part
+                part.pack()
             })
             .collect::<Vec<_>>(),
     );

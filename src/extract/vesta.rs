@@ -301,8 +301,8 @@ fn octant_offsets(strides: [usize; 3]) -> [usize; 8] {
     [0, sx, sy, sx + sy, sz, sz + sx, sz + sy, sz + sy + sx]
 }
 
-/// The coarse path over grid vertex planes `k0..k1`.
-pub(crate) fn coarse_slab(ctx: &Ctx, k0: i32, k1: i32) -> Part {
+/// The coarse path over grid vertex planes `k0..k1`, emitted into `part`.
+pub(crate) fn coarse_slab(ctx: &Ctx, part: &mut Part, k0: i32, k1: i32) {
     let rv = ctx.rv;
     let grid = rv.grid();
     let data = grid.data();
@@ -310,7 +310,6 @@ pub(crate) fn coarse_slab(ctx: &Ctx, k0: i32, k1: i32) -> Part {
     let table = StarTable::disconnect();
     let ltable = LTable::get();
     let s = ctx.lat.s;
-    let mut part = Part::default();
     for k in k0..k1 {
         for (i, j, base) in grid.candidates_in_plane(k as usize) {
             {
@@ -354,15 +353,13 @@ pub(crate) fn coarse_slab(ctx: &Ctx, k0: i32, k1: i32) -> Part {
                         } else {
                             None
                         };
-                        emit_cycle(ctx, &mut part, l, &steps[..cycle.len()], &v, lt);
+                        emit_cycle(ctx, part, l, &steps[..cycle.len()], &v, lt);
                     }
                 }
-                emit_chords(ctx, &mut part, &oct, &v);
+                emit_chords(ctx, part, &oct, &v);
             }
         }
     }
-    part.shrink_to_fit();
-    part
 }
 
 #[inline]
@@ -493,16 +490,13 @@ fn owns(near: &Near, u: [i32; 3], s: i32) -> bool {
     true
 }
 
-/// The fine path over a list of refined voxels.
-pub(crate) fn refined_cells(ctx: &Ctx, cells: &[[i32; 3]]) -> Part {
-    let mut part = Part::default();
+/// The fine path over a list of refined voxels, emitted into `part`.
+pub(crate) fn refined_cells(ctx: &Ctx, part: &mut Part, cells: &[[i32; 3]]) {
     let mut secs = Sections::new(ctx.lat.s);
     for &c in cells {
         secs.reset();
-        refined_cell(ctx, &mut part, &mut secs, c);
+        refined_cell(ctx, part, &mut secs, c);
     }
-    part.shrink_to_fit();
-    part
 }
 
 /// The boundary faces of one section (the part of a fine grid plane inside one
