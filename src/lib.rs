@@ -33,6 +33,7 @@ pub mod hyper;
 pub mod io;
 pub mod iso;
 pub mod labels;
+pub mod memory;
 pub mod mesh;
 pub mod phantom;
 pub mod pipeline;

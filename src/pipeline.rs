@@ -340,6 +340,8 @@ impl Timer {
 
     fn done(&self, progress: &mut dyn FnMut(Progress<'_>)) -> (Stage, Duration) {
         let elapsed = self.start.elapsed();
+        // what the stage freed goes back to the system before the next one
+        crate::memory::release();
         progress(Progress::Finished {
             stage: self.stage,
             elapsed,

@@ -66,16 +66,20 @@ pub(crate) fn assemble(
         })
         .collect();
 
-    let mut positions = Vec::with_capacity(total);
-    if let Some(f) = faces {
-        positions.extend(f.centres());
-    }
-    positions.extend(keys.iter().map(|&k| lat.key_position(k)));
-    let on_lattice = positions.len();
-    drop(keys);
-    for p in &mut parts {
-        positions.extend_from_slice(&std::mem::take(&mut p.centroids));
-    }
+    // (positions are made at the end, for the vertices left after the
+    // dissolution: until then each vertex is its face, key or centroid)
+    let vertices = Vertices {
+        face_centres: faces.map_or_else(Vec::new, |f| f.centres()),
+        keys,
+        centroids: {
+            let mut c = Vec::with_capacity(total - centroid_base.first().copied().unwrap_or(total));
+            for p in &mut parts {
+                c.extend_from_slice(&std::mem::take(&mut p.centroids));
+            }
+            c
+        },
+        lat,
+    };
 
     // Patches (distinct per part first: a part has a few pairs, the whole
     // output one per triangle).
@@ -138,23 +142,20 @@ pub(crate) fn assemble(
     }
     drop(parts);
     drop(ref_ids);
+    // (thousands of part buffers were freed; the arrays made from here on
+    // are large, mapped apart, and would not reuse them)
+    crate::memory::release();
 
-    let junctions = chain_junctions(positions.len(), chords);
-    // exact lattice coordinates, from the positions: coarse face centres and
-    // lattice points are (exact) multiples of 1 / 2s, centroids are not
-    let lattice = OnLattice {
-        positions: &positions,
-        count: on_lattice,
-        two_s: 2.0 * lat.s as f64,
-    };
-    dissolve::dissolve_straight(&lattice, &mut triangles, &mut triangle_patch, &junctions);
+    let mut junctions = chain_junctions(total, chords);
+    dissolve::dissolve_straight(&vertices, &mut triangles, &mut triangle_patch, &junctions);
     triangles.shrink_to_fit();
     triangle_patch.shrink_to_fit();
-    let positions: Vec<DVec3> = positions
+    let kept = compact_unused(total, &mut triangles, &mut junctions);
+    let positions: Vec<DVec3> = kept
         .par_iter()
-        .map(|&p| geometry.index_to_physical(p))
+        .map(|&v| geometry.index_to_physical(vertices.position(v)))
         .collect();
-    let mut mesh = InterfaceMesh {
+    InterfaceMesh {
         positions,
         triangles,
         triangle_patch,
@@ -162,30 +163,48 @@ pub(crate) fn assemble(
         junctions,
         labels,
         geometry,
-    };
-    compact_unused(&mut mesh);
-    mesh
-}
-
-/// The first `count` vertices lie on the lattice, at exact multiples of
-/// `1 / two_s` from -1.5 (see [`Lattice::position`]).
-struct OnLattice<'a> {
-    positions: &'a [DVec3],
-    count: usize,
-    two_s: f64,
-}
-
-impl dissolve::LatticeCoords for OnLattice<'_> {
-    fn len(&self) -> usize {
-        self.positions.len()
     }
+}
+
+/// The vertices before the dissolution, by id: coarse face centres, then
+/// lattice points (by key), then polygon centroids.
+struct Vertices {
+    face_centres: Vec<DVec3>,
+    keys: Vec<u64>,
+    centroids: Vec<DVec3>,
+    lat: Lattice,
+}
+
+impl Vertices {
+    /// Index-space position of vertex `v`.
+    fn position(&self, v: u32) -> DVec3 {
+        let (v, n_face, n_key) = (v as usize, self.face_centres.len(), self.keys.len());
+        if v < n_face {
+            self.face_centres[v]
+        } else if v < n_face + n_key {
+            self.lat.key_position(self.keys[v - n_face])
+        } else {
+            self.centroids[v - n_face - n_key]
+        }
+    }
+}
+
+impl dissolve::LatticeCoords for Vertices {
+    fn len(&self) -> usize {
+        self.face_centres.len() + self.keys.len() + self.centroids.len()
+    }
+    /// Coarse face centres lie at (exact) multiples of 1 / 2s (see
+    /// [`Lattice::position`]), lattice points have their keys, centroids are
+    /// off the lattice.
     #[inline]
     fn at(&self, v: u32) -> Option<[i32; 3]> {
-        let v = v as usize;
-        (v < self.count).then(|| {
-            let p = (self.positions[v] + DVec3::splat(1.5)) * self.two_s;
-            p.round().to_array().map(|c| c as i32)
-        })
+        let (v, n_face) = (v as usize, self.face_centres.len());
+        if v < n_face {
+            let p = (self.face_centres[v] + DVec3::splat(1.5)) * (2.0 * self.lat.s as f64);
+            Some(p.round().to_array().map(|c| c as i32))
+        } else {
+            self.keys.get(v - n_face).map(|&k| self.lat.unpack(k))
+        }
     }
 }
 
@@ -310,38 +329,37 @@ pub(crate) fn chain_junctions(
     curves
 }
 
-/// Removes vertices no triangle uses (those the straight-segment dissolution
-/// took away) from the positions and the junction curves.
-fn compact_unused(mesh: &mut InterfaceMesh) {
-    let n = mesh.positions.len();
+/// Renumbers the vertices that some triangle uses (those the straight-segment
+/// dissolution left) in order, in the triangles and the junction curves;
+/// returns the old id of each vertex kept.
+fn compact_unused(
+    n: usize,
+    triangles: &mut [[u32; 3]],
+    junctions: &mut Vec<JunctionCurve>,
+) -> Vec<u32> {
     let mut used = vec![false; n];
-    for t in &mesh.triangles {
+    for t in triangles.iter() {
         for &v in t {
             used[v as usize] = true;
         }
     }
-    if used.iter().all(|&u| u) {
-        return;
+    let kept: Vec<u32> = (0..n as u32).filter(|&v| used[v as usize]).collect();
+    if kept.len() == n {
+        return kept;
     }
     let mut remap = vec![u32::MAX; n];
-    let mut next = 0u32;
-    let mut positions = Vec::with_capacity(n);
-    for v in 0..n {
-        if used[v] {
-            remap[v] = next;
-            next += 1;
-            positions.push(mesh.positions[v]);
-        }
+    for (new, &old) in kept.iter().enumerate() {
+        remap[old as usize] = new as u32;
     }
-    mesh.positions = positions;
-    for t in &mut mesh.triangles {
-        *t = t.map(|v| remap[v as usize]);
-    }
-    for c in &mut mesh.junctions {
+    triangles
+        .par_iter_mut()
+        .for_each(|t| *t = t.map(|v| remap[v as usize]));
+    for c in junctions.iter_mut() {
         c.vertices.retain(|&v| used[v as usize]);
         for v in &mut c.vertices {
             *v = remap[*v as usize];
         }
     }
-    mesh.junctions.retain(|c| c.vertices.len() >= 2);
+    junctions.retain(|c| c.vertices.len() >= 2);
+    kept
 }
