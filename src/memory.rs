@@ -25,3 +25,29 @@ pub fn release() {
         }
     }
 }
+
+/// The most memory the process has had resident so far (`VmHWM`), in bytes;
+/// `None` where the system does not say (other than Linux).
+pub fn peak_resident_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    #[cfg(target_os = "linux")]
+    fn the_peak_covers_what_was_touched() {
+        let before = super::peak_resident_bytes().expect("linux reports VmHWM");
+        let block = vec![1u8; 64 << 20];
+        std::hint::black_box(&block);
+        let after = super::peak_resident_bytes().expect("linux reports VmHWM");
+        assert!(
+            after >= (64 << 20) && after >= before,
+            "{before} -> {after}"
+        );
+        super::release();
+    }
+}

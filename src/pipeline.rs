@@ -588,6 +588,7 @@ fn manifest(p: ManifestParts<'_>) -> Manifest {
             .iter()
             .map(|(s, d)| (s.name().to_string(), d.as_secs_f64()))
             .collect(),
+        peak_memory_mb: crate::memory::peak_resident_bytes().map(|b| b as f64 / 1e6),
         files: Vec::new(),
     }
 }

@@ -394,7 +394,14 @@ fn summarize(
         .map(|(k, t)| vec![k.to_string(), secs(*t), detail(k)])
         .collect();
     let total: Duration = timings.iter().map(|t| t.1).sum();
-    rows.push(vec!["total".into(), secs(total), String::new()]);
+    let peak = septa::memory::peak_resident_bytes().map_or_else(String::new, |b| {
+        format!(
+            "peak memory {} MB ({} bytes per output triangle)",
+            count(b / 1_000_000),
+            b / mesh.triangle_count().max(1) as u64
+        )
+    });
+    rows.push(vec!["total".into(), secs(total), peak]);
     ui.say(table(&["stage", "time", ""], &rows));
     if let Some(sel) = &m.parameters.label_selection {
         let name = |v: i64| {

@@ -18,7 +18,7 @@
 //!   "junction_curves": [{"labels": [0, 1, 2], "vertices": 40, "closed": true}, …],
 //!   "remesh_kept_share": 0.001, "remesh_steps_s": {"smooth": 0.1, "setup": 0.0, "iterations": 0.4},
 //!   "validation": {"passed": true, "checks": […]},
-//!   "timings_s": {"read": 0.01, "preprocess": 0.02, …},
+//!   "timings_s": {"read": 0.01, "preprocess": 0.02, …}, "peak_memory_mb": 420.5,
 //!   "files": ["interfaces.ply", …, "manifest.json"]
 //! }
 //! ```
@@ -183,6 +183,9 @@ pub struct Manifest {
     pub validation: ManifestValidation,
     /// Seconds of each stage.
     pub timings_s: BTreeMap<String, f64>,
+    /// Peak resident memory of the process up to the end of validation, in
+    /// MB (10⁶ bytes; `null` where the system does not report it).
+    pub peak_memory_mb: Option<f64>,
     /// Relative paths of every file written (`/`-separated), `manifest.json` last.
     pub files: Vec<String>,
 }
