@@ -42,10 +42,15 @@ const BYTES_PER_VOXEL: u64 = 12;
 /// 38 k faces) peaks at 38 MB, less than these give; the 32³ to 128³
 /// phantoms and the k-means head stay below the estimate too.
 const BYTES_PER_FACE: u64 = 450;
-/// Bytes per subvoxel of a refined voxel, its faces extracted (measured:
-/// 180 B on the noisy 64³ phantom, 260 B on the k-means head, 450 to 630 B
-/// on noise volumes, where every refined voxel is cut up).
-const BYTES_PER_SUBVOXEL: u64 = 600;
+/// Bytes per subvoxel of a refined voxel, its faces extracted. Measured
+/// peaks of the whole `--no-remesh` command (2026-12-04), less the voxel
+/// and face terms: 17 B on the k-means head (15.6 M subvoxels, 433 MB), 49
+/// to 52 B on 28³ to 48³ pure noise with 6 labels (where every refined voxel
+/// is cut up; 826 MB on 48³). The estimate is an upper bound: 1.3 GB for
+/// that noise, 1.4 GB for the head. (It was 600 B before the parts were
+/// packed and freed memory handed back, and refused the head on machines
+/// with less than 9.5 GB free.)
+const BYTES_PER_SUBVOXEL: u64 = 80;
 /// Bytes per subvoxel while preprocessing (the sparse subvoxel labels and
 /// the critical elements; measured: `inspect` on the k-means head, 125 k
 /// refined voxels, peaks at 107 MB).
