@@ -396,9 +396,9 @@ fn summarize(
     let total: Duration = timings.iter().map(|t| t.1).sum();
     let peak = septa::memory::peak_resident_bytes().map_or_else(String::new, |b| {
         format!(
-            "peak memory {} MB ({} bytes per output triangle)",
+            "peak memory {} MB ({} bytes per extracted triangle)",
             count(b / 1_000_000),
-            b / mesh.triangle_count().max(1) as u64
+            b / m.extraction.triangles.max(1) as u64
         )
     });
     rows.push(vec!["total".into(), secs(total), peak]);
