@@ -59,6 +59,7 @@ pub(crate) fn dissolve_straight<L: LatticeCoords + ?Sized>(
     let (start, mut list) = incidence::rows(n, tris);
     let mut dead = vec![false; n];
     let mut star: Vec<(u32, [u32; 3])> = Vec::with_capacity(16);
+    let mut scratch = Scratch::default();
     for v in 0..n as u32 {
         let Some(pv) = lattice.at(v) else {
             continue;
@@ -74,10 +75,9 @@ pub(crate) fn dissolve_straight<L: LatticeCoords + ?Sized>(
                 .filter(|&&t| t != NONE)
                 .map(|&t| (t, rotate_to(tris[t as usize], v))),
         );
-        let Some(merge) = straight_merge(pv, lattice, &star, patch) else {
+        let Some((u, w)) = straight_merge(pv, lattice, &star, patch, &mut scratch) else {
             continue;
         };
-        let (u, w) = merge.line;
         let on_curve = curve_nb[v as usize];
         if on_curve[0] != NONE && !(on_curve == [u, w] || on_curve == [w, u]) {
             continue;
@@ -91,7 +91,7 @@ pub(crate) fn dissolve_straight<L: LatticeCoords + ?Sized>(
         {
             continue;
         }
-        for &(keep, gone, merged, l2, apex) in &merge.pairs {
+        for &(keep, gone, merged, l2, apex) in &scratch.pairs {
             tris[keep as usize] = merged;
             tris[gone as usize] = [NONE; 3];
             replace_in_row(&start, &mut list, l2, gone, keep);
@@ -125,39 +125,68 @@ pub(crate) fn dissolve_straight<L: LatticeCoords + ?Sized>(
     dead
 }
 
-/// The replacement of a vertex's triangles: its two line neighbours and, per
-/// far corner, (kept slot, dead slot, merged triangle, the line end whose
-/// row must name the kept slot, the far corner).
-struct Merge {
-    line: (u32, u32),
+/// Buffers of [`straight_merge`], reused from vertex to vertex.
+#[derive(Default)]
+struct Scratch {
+    /// The replacement of a vertex's triangles: per far corner, (kept slot,
+    /// dead slot, merged triangle, the line end whose row must name the kept
+    /// slot, the far corner).
     pairs: Vec<(u32, u32, [u32; 3], u32, u32)>,
+    apexes: Vec<u32>,
+    neighbours: Vec<u32>,
+    offsets: Vec<Option<[i64; 3]>>,
+    lines: Vec<(u32, u32)>,
 }
 
 /// Whether the triangles around `v` (each rotated to start at `v`) pair up
-/// along one straight line through it, and how they merge. Where two lines
-/// would do (a flat star of four triangles, straight both ways), the first
-/// one found is taken: either gives the same point set.
+/// along one straight line through it: its two line neighbours, with the
+/// merge in `scratch.pairs`. Where two lines would do (a flat star of four
+/// triangles, straight both ways), the first one found is taken: either
+/// gives the same point set.
 fn straight_merge<L: LatticeCoords + ?Sized>(
     pv: [i32; 3],
     lattice: &L,
     star: &[(u32, [u32; 3])],
     patch: &[u32],
-) -> Option<Merge> {
+    scratch: &mut Scratch,
+) -> Option<(u32, u32)> {
     if star.len() < 2 || star.len() % 2 == 1 {
         return None;
     }
-    lines_through(pv, lattice, star)
-        .into_iter()
-        .find_map(|line| merge_along(line, star, patch))
+    lines_through(
+        pv,
+        lattice,
+        star,
+        &mut scratch.neighbours,
+        &mut scratch.offsets,
+        &mut scratch.lines,
+    );
+    let Scratch {
+        pairs,
+        apexes,
+        lines,
+        ..
+    } = scratch;
+    lines
+        .iter()
+        .copied()
+        .find(|&line| merge_along(line, star, patch, pairs, apexes))
 }
 
-/// The pairs of `star` along the line `u – v – w`, if every triangle is in one.
-fn merge_along((u, w): (u32, u32), star: &[(u32, [u32; 3])], patch: &[u32]) -> Option<Merge> {
+/// Whether every triangle of `star` is in one pair along the line
+/// `u – v – w`; the pairs go to `pairs`.
+fn merge_along(
+    (u, w): (u32, u32),
+    star: &[(u32, [u32; 3])],
+    patch: &[u32],
+    pairs: &mut Vec<(u32, u32, [u32; 3], u32, u32)>,
+    apexes: &mut Vec<u32>,
+) -> bool {
     let on_line = |x: u32| x == u || x == w;
     if !star.iter().all(|&(_, [_, x, y])| on_line(x) != on_line(y)) {
-        return None;
+        return false;
     }
-    let mut pairs = Vec::with_capacity(star.len() / 2);
+    pairs.clear();
     for &(t, [_, x, y]) in star {
         // (v, a, L1): pair it with the (v, L2, a) of the same corner
         if on_line(x) {
@@ -167,41 +196,45 @@ fn merge_along((u, w): (u32, u32), star: &[(u32, [u32; 3])], patch: &[u32]) -> O
         let mut partner = star
             .iter()
             .filter(|&&(_, [_, p, q])| q == a && on_line(p) && p != l1);
-        let &(t2, [_, l2, _]) = partner.next()?;
+        let Some(&(t2, [_, l2, _])) = partner.next() else {
+            return false;
+        };
         if partner.next().is_some() || patch[t as usize] != patch[t2 as usize] {
-            return None;
+            return false;
         }
         pairs.push((t, t2, [a, l1, l2], l2, a));
     }
     // every triangle in exactly one pair: one pair per far corner
-    let mut apexes: Vec<u32> = pairs.iter().map(|p| p.4).collect();
+    apexes.clear();
+    apexes.extend(pairs.iter().map(|p| p.4));
     apexes.sort_unstable();
-    let in_pairs = pairs.len() * 2 == star.len() && apexes.windows(2).all(|w| w[0] != w[1]);
-    in_pairs.then_some(Merge {
-        line: (u, w),
-        pairs,
-    })
+    pairs.len() * 2 == star.len() && apexes.windows(2).all(|w| w[0] != w[1])
 }
 
 /// The pairs of neighbours of `v` (at `pv`) on a line through it, with `v`
-/// strictly between them, in the order of their ids.
+/// strictly between them, in the order of their ids, into `found`.
 fn lines_through<L: LatticeCoords + ?Sized>(
     pv: [i32; 3],
     lattice: &L,
     star: &[(u32, [u32; 3])],
-) -> Vec<(u32, u32)> {
-    let mut nbs: Vec<u32> = star.iter().flat_map(|&(_, [_, x, y])| [x, y]).collect();
+    nbs: &mut Vec<u32>,
+    offsets: &mut Vec<Option<[i64; 3]>>,
+    found: &mut Vec<(u32, u32)>,
+) {
+    nbs.clear();
+    nbs.extend(star.iter().flat_map(|&(_, [_, x, y])| [x, y]));
     nbs.sort_unstable();
     nbs.dedup();
-    let offset = |x: u32| -> Option<[i64; 3]> {
+    offsets.clear();
+    offsets.extend(nbs.iter().map(|&x| {
         let p = lattice.at(x)?;
         Some([0, 1, 2].map(|k| (p[k] - pv[k]) as i64))
-    };
-    let mut found = Vec::new();
-    for (i, &a) in nbs.iter().enumerate() {
-        let Some(da) = offset(a) else { continue };
-        for &b in &nbs[i + 1..] {
-            let Some(db) = offset(b) else { continue };
+    }));
+    found.clear();
+    for (i, (&a, da)) in nbs.iter().zip(offsets.iter()).enumerate() {
+        let Some(da) = da else { continue };
+        for (&b, db) in nbs[i + 1..].iter().zip(&offsets[i + 1..]) {
+            let Some(db) = db else { continue };
             let cross = [
                 da[1] * db[2] - da[2] * db[1],
                 da[2] * db[0] - da[0] * db[2],
@@ -213,7 +246,6 @@ fn lines_through<L: LatticeCoords + ?Sized>(
             }
         }
     }
-    found
 }
 
 /// `t` rotated so that it starts at `v` (orientation kept).
