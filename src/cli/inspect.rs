@@ -44,7 +44,11 @@ pub fn run(args: &InspectArgs, ui: &Ui) -> Result<ExitCode> {
     }
     let s = pre.refined.subdivision();
     let refined = pre.refined.refined_count();
-    let share = refined as f64 / v.dims().len() as f64;
+    // refined voxels include those of the one-voxel ring of the outside
+    // label around the volume: the share is of the grid with that ring
+    let d = v.dims();
+    let padded = (d.nx + 2) * (d.ny + 2) * (d.nz + 2);
+    let share = refined as f64 / padded as f64;
     let position = |kind: ElementKind, pos: [i32; 3]| -> DVec3 {
         // element centre in index space: grid vertex (i,j,k) is at index i - 0.5
         let mut c = DVec3::new(
@@ -162,7 +166,7 @@ pub fn run(args: &InspectArgs, ui: &Ui) -> Result<ExitCode> {
         ));
     }
     ui.say(format!(
-        "refined      {} voxels ({:.4} % of the volume) in {}",
+        "refined      {} voxels ({:.4} % of the volume with its outside ring) in {}",
         count(refined as u64),
         100.0 * share,
         secs(took)
