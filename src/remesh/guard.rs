@@ -217,6 +217,8 @@ pub(super) struct Guard {
     tris: Vec<Tri>,
     /// Per patch and face: its entry (or [`NONE`]).
     entry: Vec<Vec<u32>>,
+    /// Per entry: its (patch, face), or ([`NONE`], [`NONE`]) for an obstacle.
+    owner: Vec<(u32, u32)>,
     query: u32,
     made_boxes: Vec<Box32>,
     /// New triangles must lie within this box (where the obstacles are complete).
@@ -281,6 +283,7 @@ impl Guard {
                 .iter()
                 .map(|st| vec![NONE; st.mesh.face_slots()])
                 .collect(),
+            owner: Vec::new(),
             query: 0,
             made_boxes: Vec::new(),
             trusted,
@@ -288,22 +291,34 @@ impl Guard {
         // entries get their ids in the order of their cells, so that a scan
         // reads the entries of a cell (and of the next cell on its row) from
         // one stretch of memory rather than from all over
-        let mut todo: Vec<(u64, Tri, u32, u32)> =
-            obstacles.into_iter().map(|t| (0, t, NONE, NONE)).collect();
+        let mut todo: Vec<(Tri, u32, u32)> =
+            obstacles.into_iter().map(|t| (t, NONE, NONE)).collect();
         for (p, st) in patches.iter().enumerate() {
             for f in 0..st.mesh.face_slots() as u32 {
                 if !st.mesh.face_dead(f) {
-                    todo.push((0, Tri::of_face(&st.mesh, p as u32, f), p as u32, f));
+                    todo.push((Tri::of_face(&st.mesh, p as u32, f), p as u32, f));
                 }
             }
         }
-        for item in &mut todo {
-            let (level, cell) = g.place(&item.1);
-            item.0 = ((level as u64) << 32) | cell as u64;
-        }
-        todo.sort_by_key(|item| item.0);
-        for (_, t, p, f) in todo {
-            let e = g.add(t);
+        // (sorted as keys and indices: the triangles are 72 bytes each)
+        let mut order: Vec<(u64, u32)> = todo
+            .iter()
+            .enumerate()
+            .map(|(i, item)| {
+                let (level, cell) = g.place(&item.0);
+                (((level as u64) << 32) | cell as u64, i as u32)
+            })
+            .collect();
+        order.sort_unstable();
+        g.slots.reserve(todo.len());
+        g.prev.reserve(todo.len());
+        g.level_of.reserve(todo.len());
+        g.cell_of.reserve(todo.len());
+        g.tris.reserve(todo.len());
+        g.owner.reserve(todo.len());
+        for (key, i) in order {
+            let (t, p, f) = todo[i as usize];
+            let e = g.add_at(t, (p, f), (key >> 32) as usize, key as u32);
             if p != NONE {
                 g.entry[p as usize][f as usize] = e;
             }
@@ -332,9 +347,16 @@ impl Guard {
         )
     }
 
-    /// Lists a new entry for triangle `t`.
-    fn add(&mut self, t: Tri) -> u32 {
+    /// Lists a new entry for triangle `t`, face `owner` (patch, face).
+    fn add(&mut self, t: Tri, owner: (u32, u32)) -> u32 {
+        let (level, c) = self.place(&t);
+        self.add_at(t, owner, level, c)
+    }
+
+    /// [`Guard::add`] at its [`Guard::place`], known.
+    fn add_at(&mut self, t: Tri, owner: (u32, u32), level: usize, c: u32) -> u32 {
         let e = self.slots.len() as u32;
+        self.owner.push(owner);
         self.slots.push(Slot {
             b: t.box32(),
             next: NONE,
@@ -344,15 +366,19 @@ impl Guard {
         self.level_of.push(0);
         self.cell_of.push(NONE);
         self.tris.push(t);
-        self.link(e, t);
+        self.link_at(e, t, level, c);
         e
     }
 
     /// Puts entry `e` (triangle `t`) on a list: at the finest level whose
     /// cells are at least twice its half box, in the cell of its centre.
     fn link(&mut self, e: u32, t: Tri) {
-        let b = t.bounds();
         let (level, c) = self.place(&t);
+        self.link_at(e, t, level, c);
+    }
+
+    /// [`Guard::link`] at its [`Guard::place`], known.
+    fn link_at(&mut self, e: u32, t: Tri, level: usize, c: u32) {
         let l = &mut self.levels[level];
         let first = l.head[c as usize];
         l.head[c as usize] = e;
@@ -364,7 +390,7 @@ impl Guard {
         }
         self.level_of[e as usize] = level as u8;
         self.cell_of[e as usize] = c;
-        self.slots[e as usize].b = Box32::outward(b.0, b.1);
+        self.slots[e as usize].b = t.box32();
         self.tris[e as usize] = t;
     }
 
@@ -397,7 +423,7 @@ impl Guard {
         let t = Tri::of_face(m, p, f);
         match self.entry[pu][f as usize] {
             NONE => {
-                let e = self.add(t);
+                let e = self.add(t, (p, f));
                 self.entry[pu][f as usize] = e;
             }
             e => {
@@ -460,14 +486,43 @@ impl Guard {
         let mut made_boxes = std::mem::take(&mut self.made_boxes);
         made_boxes.clear();
         made_boxes.extend(made.iter().map(|t| t.box32()));
-        let clear = self.scan(made, &made_boxes, lo, hi, q);
+        let crossed = self.scan(made, &made_boxes, lo, hi, q);
         self.made_boxes = made_boxes;
-        clear
+        crossed.is_none()
     }
 
-    /// The cells near [lo, hi]: whether no entry not seen by query `q`
-    /// crosses a triangle of `made`.
-    fn scan(&self, made: &[Tri], made_boxes: &[Box32], lo: DVec3, hi: DVec3, q: u32) -> bool {
+    /// What the one triangle `t` would cross among the registered entries:
+    /// `None` if nothing (and it lies within the trusted box); `Some(face)`
+    /// for the (patch, face) it crosses, `Some(None)` for an obstacle or
+    /// for leaving the trusted box.
+    pub(super) fn crossing(&mut self, t: &Tri) -> Option<Option<(u32, u32)>> {
+        let (lo, hi) = t.bounds();
+        if !(lo.is_finite() && hi.is_finite())
+            || lo.cmplt(self.trusted.0).any()
+            || hi.cmpgt(self.trusted.1).any()
+        {
+            return Some(None);
+        }
+        self.query = self.query.wrapping_add(1);
+        if self.query == 0 {
+            self.slots.iter_mut().for_each(|s| s.seen = 0);
+            self.query = 1;
+        }
+        let e = self.scan(std::slice::from_ref(t), &[t.box32()], lo, hi, self.query)?;
+        let (p, f) = self.owner[e as usize];
+        Some((p != NONE).then_some((p, f)))
+    }
+
+    /// The cells near [lo, hi]: the first entry not seen by query `q` that
+    /// crosses a triangle of `made`, if any.
+    fn scan(
+        &self,
+        made: &[Tri],
+        made_boxes: &[Box32],
+        lo: DVec3,
+        hi: DVec3,
+        q: u32,
+    ) -> Option<u32> {
         let query_box = Box32::outward(lo, hi);
         for l in &self.levels {
             if l.count == 0 {
@@ -493,13 +548,13 @@ impl Guard {
                             if made.iter().zip(made_boxes).any(|(s, sb)| {
                                 sb.overlaps(&tb) && triangles_cross(&s.p, &s.k, &t.p, &t.k)
                             }) {
-                                return false;
+                                return Some(cur as u32);
                             }
                         }
                     }
                 }
             }
         }
-        true
+        None
     }
 }

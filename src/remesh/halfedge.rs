@@ -109,6 +109,13 @@ impl HalfedgeMesh {
         // halfedges in order of first appearance (as a hash map would give)
         let mut corner_h = vec![NONE; 3 * tris.len()];
         m.f_h.reserve(tris.len());
+        // about 3/2 edges per triangle (two halfedges each)
+        let halfedges = 3 * tris.len() + 16;
+        m.h_to.reserve(halfedges);
+        m.h_next.reserve(halfedges);
+        m.h_prev.reserve(halfedges);
+        m.h_face.reserve(halfedges);
+        m.e_dead.reserve(halfedges / 2);
         m.f_dead.reserve(tris.len());
         m.face_hint = vec![Cell::new(NONE); tris.len()];
         for (t, _) in tris.iter().enumerate() {

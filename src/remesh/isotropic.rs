@@ -369,29 +369,6 @@ impl<'r> Remesher<'r> {
         }
     }
 
-    /// Moves interior vertex `v` of patch `p` to `at`, if the guard allows it
-    /// (the local checks are the caller's).
-    fn guarded_move(&mut self, p: u32, v: u32, at: DVec3) -> bool {
-        let mut made = std::mem::take(&mut self.made);
-        let mut replaced = std::mem::take(&mut self.replaced);
-        made.clear();
-        replaced.clear();
-        let m = &self.patches[p as usize].mesh;
-        Self::fan_moved(m, p, v, at, vertex_key(m, p, v), NONE, &mut made);
-        Self::faces_around(m, p, v, &mut replaced);
-        self.made = made;
-        self.replaced = replaced;
-        if !self.guard_clear() {
-            return false;
-        }
-        let replaced = std::mem::take(&mut self.replaced);
-        self.unregister(&replaced);
-        self.patches[p as usize].mesh.pos[v as usize] = at;
-        self.register(&replaced);
-        self.replaced = replaced;
-        true
-    }
-
     /// Collapses halfedge `h` of patch `p` (its from-vertex merges into its
     /// to-vertex, which moves to `at`), if the guard allows it.
     fn guarded_collapse(&mut self, p: u32, h: u32, at: DVec3) -> bool {
@@ -874,6 +851,17 @@ impl<'r> Remesher<'r> {
         } else {
             Vec::new()
         };
+        // the target at each face's barycentre, once per face rather than
+        // once per corner
+        let targets: Vec<f64> = (0..m.face_slots() as u32)
+            .map(|f| {
+                if m.face_dead(f) {
+                    return 0.0;
+                }
+                let [a, b, c] = m.face_vertices(f).map(|v| m.pos[v as usize]);
+                sizing.at((a + b + c) / 3.0)
+            })
+            .collect();
         let moves: Vec<(u32, DVec3, u32)> = m
             .vertices()
             .filter(|&v| !m.locked[v as usize] && !m.is_boundary_vertex(v))
@@ -889,7 +877,7 @@ impl<'r> Remesher<'r> {
                     let (a, b) = (m.pos[m.to(h) as usize], m.pos[m.to(m.next(h)) as usize]);
                     let n = (a - at).cross(b - at);
                     let bary = (at + a + b) / 3.0;
-                    let target = sizing.at(bary);
+                    let target = targets[m.face(h) as usize];
                     let w = n.length().max(f64::MIN_POSITIVE) / (target * target);
                     centroid += bary * w;
                     weights += w;
@@ -929,14 +917,222 @@ impl<'r> Remesher<'r> {
                 Some((v, onto + n * off, near))
             })
             .collect();
-        for (v, to, near) in moves {
-            let m = &mut self.patches[p as usize].mesh;
-            // the triangle under the new position starts the fit walks
-            let old_hint = std::mem::replace(&mut m.hint[v as usize], near);
-            if !(move_ok(m, v, to, fit) && self.guarded_move(p, v, to)) {
-                self.patches[p as usize].mesh.hint[v as usize] = old_hint;
+        self.move_together(p, &moves, fit);
+    }
+
+    /// Makes the `moves` (vertex, position, reference hint) of patch `p`
+    /// all at once, as B&K's tangential relaxation does, then checks every
+    /// face they changed once: it must keep its orientation, a fair shape
+    /// and the reference ([`face_move_ok`]), and cross nothing (the guard);
+    /// closed components keep the sign of their volume. Where a face fails,
+    /// the moves of its vertices (and of the face it crosses) are taken
+    /// back and the faces around them checked again, until every face
+    /// passes: the state with every move taken back is the one before, which
+    /// passes, so this ends. Each changed face is tested once rather than
+    /// once per moved corner (three times), as moving the vertices one at a
+    /// time with a guard query per fan did.
+    fn move_together(&mut self, p: u32, moves: &[(u32, DVec3, u32)], fit: Fit) {
+        if moves.is_empty() {
+            return;
+        }
+        let pu = p as usize;
+        let m = &self.patches[pu].mesh;
+        let mut from: Vec<Option<(DVec3, u32)>> = vec![None; m.vertex_slots()];
+        // per face: out of the guard (changed, not yet accepted), and queued
+        let mut out = vec![false; m.face_slots()];
+        let mut queued = vec![false; m.face_slots()];
+        let mut queue: Vec<u32> = Vec::new();
+        for &(v, to, near) in moves {
+            let m = &mut self.patches[pu].mesh;
+            from[v as usize] = Some((m.pos[v as usize], m.hint[v as usize]));
+            m.pos[v as usize] = to;
+            m.hint[v as usize] = near;
+            Self::recheck_faces_at(m, &mut self.guard, p, v, &mut out, &mut queued, &mut queue);
+        }
+        let mut back: Vec<u32> = Vec::new();
+        let mut failed: Vec<u32> = Vec::new();
+        loop {
+            for f in std::mem::take(&mut queue) {
+                queued[f as usize] = false;
+                let m = &self.patches[pu].mesh;
+                let moved = |g: u32| {
+                    m.face_vertices(g)
+                        .into_iter()
+                        .filter(|&v| from[v as usize].is_some())
+                };
+                let own = back.len();
+                back.extend(moved(f));
+                // (a face as it was before needs no local check: only what
+                // it may cross has changed)
+                if back.len() > own && !face_move_ok(m, f, &from, fit) {
+                    failed.push(f);
+                    continue;
+                }
+                back.truncate(own);
+                self.stats[0] += 1;
+                self.stats[1] += 1;
+                let t = std::time::Instant::now();
+                let hit = self.guard.crossing(&Tri::of_face(m, p, f));
+                self.stats[2] += t.elapsed().as_nanos() as u64;
+                let Some(other) = hit else {
+                    self.guard.insert(m, p, f);
+                    out[f as usize] = false;
+                    continue;
+                };
+                self.stats[3] += 1;
+                back.extend(moved(f));
+                if let Some((q, g)) = other {
+                    if q == p {
+                        back.extend(moved(g));
+                    }
+                }
+                if back.len() == own {
+                    // two faces as they were cross: the mesh before this
+                    // pass would have; nothing to take back (not expected)
+                    debug_assert!(false, "faces as they were cross");
+                    self.guard.insert(m, p, f);
+                    out[f as usize] = false;
+                } else {
+                    failed.push(f);
+                }
+            }
+            if back.is_empty() {
+                back = self.volume_sign_changes(p, &from);
+                if back.is_empty() {
+                    break;
+                }
+            }
+            for v in back.drain(..) {
+                let Some((at, hint)) = from[v as usize].take() else {
+                    continue;
+                };
+                let m = &mut self.patches[pu].mesh;
+                m.pos[v as usize] = at;
+                m.hint[v as usize] = hint;
+                Self::recheck_faces_at(m, &mut self.guard, p, v, &mut out, &mut queued, &mut queue);
+            }
+            // the faces that failed, checked again with what was taken back
+            for f in failed.drain(..) {
+                if !queued[f as usize] {
+                    queued[f as usize] = true;
+                    queue.push(f);
+                }
             }
         }
+        debug_assert!(!out.iter().any(|&o| o), "every face back in the guard");
+        // the faces that did change: no longer as extracted; what the
+        // components' volumes lost
+        let changes = self.component_volume_changes(p, &from);
+        for (c, change) in changes {
+            self.volumes[c as usize] += change;
+        }
+        let st = &mut self.patches[pu];
+        for f in 0..st.mesh.face_slots() as u32 {
+            if !st.mesh.face_dead(f)
+                && st
+                    .mesh
+                    .face_vertices(f)
+                    .iter()
+                    .any(|&v| from[v as usize].is_some())
+            {
+                if st.kept.len() <= f as usize {
+                    st.kept.resize(st.mesh.face_slots(), false);
+                }
+                st.kept[f as usize] = false;
+            }
+        }
+    }
+
+    /// Takes the faces around `v` out of the guard (those not out already)
+    /// and queues them to be checked (those not queued already).
+    fn recheck_faces_at(
+        m: &HalfedgeMesh,
+        guard: &mut Guard,
+        p: u32,
+        v: u32,
+        out: &mut [bool],
+        queued: &mut [bool],
+        queue: &mut Vec<u32>,
+    ) {
+        for h in m.outgoing(v) {
+            let f = m.face(h) as usize;
+            if f == NONE as usize {
+                continue;
+            }
+            if !out[f] {
+                out[f] = true;
+                guard.remove(p, f as u32);
+            }
+            if !queued[f] {
+                queued[f] = true;
+                queue.push(f as u32);
+            }
+        }
+    }
+
+    /// Per closed component of patch `p` whose faces the moves (`from`: the
+    /// old position of each moved vertex) changed: the signed volume it
+    /// gains (the old and the new faces bound the same ring, so the
+    /// difference is the volume between them, whatever the origin).
+    fn component_volume_changes(&self, p: u32, from: &[Option<(DVec3, u32)>]) -> Vec<(u32, f64)> {
+        let st = &self.patches[p as usize];
+        let m = &st.mesh;
+        let mut changes: Vec<(u32, DVec3, f64)> = Vec::new();
+        for f in 0..m.face_slots() as u32 {
+            let c = st.component.get(f as usize).copied().unwrap_or(NONE);
+            if c == NONE || m.face_dead(f) {
+                continue;
+            }
+            let vs = m.face_vertices(f);
+            if !vs.iter().any(|&v| from[v as usize].is_some()) {
+                continue;
+            }
+            let new = vs.map(|v| m.pos[v as usize]);
+            let old = vs.map(|v| from[v as usize].map_or(m.pos[v as usize], |x| x.0));
+            let k = match changes.iter().position(|x| x.0 == c) {
+                Some(k) => k,
+                None => {
+                    changes.push((c, old[0], 0.0));
+                    changes.len() - 1
+                }
+            };
+            let o = changes[k].1;
+            let cone = |q: [DVec3; 3]| (q[0] - o).dot((q[1] - o).cross(q[2] - o)) / 6.0;
+            changes[k].2 += cone(new) - cone(old);
+        }
+        changes.into_iter().map(|(c, _, d)| (c, d)).collect()
+    }
+
+    /// The moved vertices of the closed components whose volume the moves
+    /// would take through zero (which no crossing test sees: a component
+    /// jumping through itself comes out inside out).
+    fn volume_sign_changes(&self, p: u32, from: &[Option<(DVec3, u32)>]) -> Vec<u32> {
+        let flipped: Vec<u32> = self
+            .component_volume_changes(p, from)
+            .into_iter()
+            .filter(|&(c, change)| {
+                let left = self.volumes[c as usize];
+                !(left * (left + change) > 0.0)
+            })
+            .map(|(c, _)| c)
+            .collect();
+        if flipped.is_empty() {
+            return Vec::new();
+        }
+        let st = &self.patches[p as usize];
+        let m = &st.mesh;
+        let mut back = Vec::new();
+        for f in 0..m.face_slots() as u32 {
+            let c = st.component.get(f as usize).copied().unwrap_or(NONE);
+            if c != NONE && !m.face_dead(f) && flipped.contains(&c) {
+                back.extend(
+                    m.face_vertices(f)
+                        .into_iter()
+                        .filter(|&v| from[v as usize].is_some()),
+                );
+            }
+        }
+        back
     }
 
     // ---- result --------------------------------------------------------------
@@ -1141,6 +1337,28 @@ pub(super) fn move_ok(m: &HalfedgeMesh, v: u32, p: DVec3, fit: Fit) -> bool {
         }
     }
     true
+}
+
+/// Whether face `f` of `m`, some of whose vertices moved (`from`: the old
+/// position of each vertex that moved), keeps its orientation, an
+/// acceptable shape (or one no worse than before) and follows the reference.
+fn face_move_ok(m: &HalfedgeMesh, f: u32, from: &[Option<(DVec3, u32)>], fit: Fit) -> bool {
+    let vs = m.face_vertices(f);
+    let [a, b, c] = vs.map(|v| m.pos[v as usize]);
+    let [a0, b0, c0] = vs.map(|v| from[v as usize].map_or(m.pos[v as usize], |x| x.0));
+    let (old_n, new_n) = ((b0 - a0).cross(c0 - a0), (b - a).cross(c - a));
+    if old_n.dot(new_n) <= 0.0 || is_degenerate(a, b, c) {
+        return false;
+    }
+    let q_new = triangle_quality(a, b, c);
+    if q_new < MIN_QUALITY && q_new < triangle_quality(a0, b0, c0) {
+        return false;
+    }
+    let mut hint = vs
+        .iter()
+        .find(|&&v| from[v as usize].is_some())
+        .map_or(NO_TRIANGLE, |&v| m.hint[v as usize]);
+    fit.check_face(m, f, a, b, c, &mut hint)
 }
 
 /// Whether collapsing `h` (from(h) moves to `p`, then merges into to(h)) keeps
