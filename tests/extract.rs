@@ -324,3 +324,42 @@ fn refined_share_of_the_output_stays_small_on_noisy_volumes() {
         "pure noise: {per_voxel:.1} triangles per voxel"
     );
 }
+
+/// Faces of one pair in one section of a refined voxel are merged into
+/// polygons, and the dual surface fans out from their support points, so it
+/// must never fold over: random volumes from pure noise to runs of equal
+/// labels, with the intersection check on. (L decomposition, the default:
+/// the centroid fans of H cross each other on such volumes.)
+#[test]
+fn section_polygons_never_fold_the_extraction() {
+    let mut rng = Rng(23);
+    for case in 0..24 {
+        let n = 8 + case % 5;
+        let labels = 2 + (case % 4) as u64;
+        // runs of `run` equal voxels along x (1: pure noise)
+        let run = 1 + case % 3;
+        let noise: Vec<i64> = (0..n * n * n).map(|_| rng.below(labels) as i64).collect();
+        let v: Vec<i64> = (0..n * n * n).map(|i| noise[i - i % n % run]).collect();
+        let (vol, r) = resolved_outside0(volume([n, n, n], &v));
+        let pre = septa::preprocess::preprocess(&vol, &r);
+        let mesh = extract(
+            &pre.refined,
+            label_infos(&vol, None),
+            *vol.geometry(),
+            &ExtractOptions::default(),
+        )
+        .unwrap();
+        let rep = validate(
+            &mesh,
+            &Options {
+                intersections: true,
+                fidelity: Some((&pre.refined, 0.5)),
+            },
+        );
+        assert!(
+            rep.passed(),
+            "case {case} ({n}³, {labels} labels, runs of {run}):\n{}",
+            rep.summary()
+        );
+    }
+}

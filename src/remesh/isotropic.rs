@@ -619,25 +619,43 @@ impl<'r> Remesher<'r> {
         matches!(self.kind[v as usize], VertexKind::Curve(_))
     }
 
-    /// Collapses curve edge i (u, v) by removing a movable end; false if not allowed.
+    /// Collapses curve edge i (u, v) by removing a movable end, the one that
+    /// leaves the shorter edge first, then the other; false if neither may go.
     fn try_curve_collapse(&mut self, c: usize, i: usize, u: u32, v: u32) -> bool {
         if self.curves[c].closed && self.curves[c].vertices.len() <= 3 {
             return false;
         }
         let n = self.curves[c].vertices.len();
-        let (remove, keep, idx) = if self.movable_on_curve(u) {
-            (u, v, i)
-        } else if self.movable_on_curve(v) {
-            (v, u, (i + 1) % n)
-        } else {
-            return false;
+        let closed = self.curves[c].closed;
+        // (remove, keep, its index, the other curve neighbour of `remove`)
+        let mut ends: Vec<(u32, u32, usize, u32)> = Vec::with_capacity(2);
+        if self.movable_on_curve(u) && (closed || i > 0) {
+            ends.push((u, v, i, self.curves[c].vertices[(i + n - 1) % n]));
+        }
+        if self.movable_on_curve(v) && (closed || i + 2 < n) {
+            ends.push((v, u, (i + 1) % n, self.curves[c].vertices[(i + 2) % n]));
+        }
+        let left = |s: &Self, &(_, keep, _, other): &(u32, u32, usize, u32)| {
+            (s.pos[other as usize] - s.pos[keep as usize]).length()
         };
-        // the other curve neighbour of `remove` must stay within 4/3 h of `keep`
-        let other = if remove == u {
-            self.curves[c].vertices[(i + n - 1) % n]
-        } else {
-            self.curves[c].vertices[(i + 2) % n]
-        };
+        if ends.len() == 2 && left(self, &ends[1]) < left(self, &ends[0]) {
+            ends.swap(0, 1);
+        }
+        ends.into_iter()
+            .any(|(remove, keep, idx, other)| self.collapse_curve_end(c, remove, keep, idx, other))
+    }
+
+    /// Removes curve vertex `remove` (at index `idx` of curve `c`) into its
+    /// neighbour `keep`, if the edge left to `other` (its other neighbour)
+    /// is not too long and every patch and the guard allow it.
+    fn collapse_curve_end(
+        &mut self,
+        c: usize,
+        remove: u32,
+        keep: u32,
+        idx: usize,
+        other: u32,
+    ) -> bool {
         let (po, pk) = (self.pos[other as usize], self.pos[keep as usize]);
         if (po - pk).length() > SPLIT_ABOVE * self.sizing.edge(po, pk) {
             return false;
