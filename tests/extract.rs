@@ -8,6 +8,29 @@ use septa::mesh::validate::{Options, validate};
 use septa::preprocess::{RefinedVolume, preprocess};
 use septa::volume::{Geometry, PaddedLabels};
 
+/// The default extraction of `refined` (from `vol`), and the validator's
+/// report on it with intersections and fidelity checked.
+fn extract_checked(
+    refined: &RefinedVolume,
+    vol: &septa::volume::LabelVolume,
+) -> (septa::mesh::InterfaceMesh, septa::mesh::validate::Report) {
+    let mesh = extract(
+        refined,
+        label_infos(vol, None),
+        *vol.geometry(),
+        &ExtractOptions::default(),
+    )
+    .unwrap();
+    let rep = validate(
+        &mesh,
+        &Options {
+            intersections: true,
+            fidelity: Some((refined, 0.5)),
+        },
+    );
+    (mesh, rep)
+}
+
 fn one_voxel() -> septa::volume::LabelVolume {
     let mut v = vec![0i64; 27];
     v[13] = 1;
@@ -67,20 +90,7 @@ fn two_voxels_sharing_a_vertex_are_two_octahedra_without_preprocessing() {
     let (vol, r) = resolved_outside0(vol);
     let grid = PaddedLabels::new(&vol, r.outside);
     let plain = RefinedVolume::unrefined(grid, 5);
-    let mesh = extract(
-        &plain,
-        label_infos(&vol, None),
-        *vol.geometry(),
-        &ExtractOptions::default(),
-    )
-    .unwrap();
-    let rep = validate(
-        &mesh,
-        &Options {
-            intersections: true,
-            fidelity: Some((&plain, 0.5)),
-        },
-    );
+    let (mesh, rep) = extract_checked(&plain, &vol);
     assert!(rep.passed(), "{}", rep.summary());
     assert_eq!((mesh.vertex_count(), mesh.triangle_count()), (12, 16));
     let l1 = rep.labels.iter().find(|l| l.value == 1).unwrap();
@@ -342,20 +352,7 @@ fn section_polygons_never_fold_the_extraction() {
         let v: Vec<i64> = (0..n * n * n).map(|i| noise[i - i % n % run]).collect();
         let (vol, r) = resolved_outside0(volume([n, n, n], &v));
         let pre = septa::preprocess::preprocess(&vol, &r);
-        let mesh = extract(
-            &pre.refined,
-            label_infos(&vol, None),
-            *vol.geometry(),
-            &ExtractOptions::default(),
-        )
-        .unwrap();
-        let rep = validate(
-            &mesh,
-            &Options {
-                intersections: true,
-                fidelity: Some((&pre.refined, 0.5)),
-            },
-        );
+        let (_, rep) = extract_checked(&pre.refined, &vol);
         assert!(
             rep.passed(),
             "case {case} ({n}³, {labels} labels, runs of {run}):\n{}",
