@@ -8,9 +8,10 @@
 //! remeshed (cells doubling in size from level to level): every face (and
 //! every fixed *obstacle*: a triangle beside the region that no operation
 //! here may change) is listed once, at the finest level whose cells are at
-//! least twice its half box, in the cell holding the centre of its box, on
-//! an intrusive doubly linked list, so that registering and unregistering a
-//! face are O(1). A query looks, at every level that holds entries, at the
+//! least twice its half box, in the bucket of the cell holding the centre of
+//! its box (a cell's entries side by side, with their boxes, so that a scan
+//! reads memory in order), so that registering and unregistering a face are
+//! O(1) (amortised). A query looks, at every level that holds entries, at the
 //! cells within half a cell of its own box, and tests the boxes (kept per
 //! face, in `f32` rounded outward) before the triangles. Vertices
 //! are identified by keys, so that triangles sharing a vertex or an edge (in
@@ -147,13 +148,20 @@ fn is_simple_fan(made: &[Tri]) -> bool {
 /// Most cells the finest grid may have.
 const MAX_CELLS: usize = 1 << 22;
 
-/// One level of the hierarchy: a grid of lists.
+/// A cell's entries: a stretch of [`Guard::pool`].
+#[derive(Clone, Copy, Default)]
+struct Bucket {
+    start: u32,
+    len: u32,
+    cap: u32,
+}
+
+/// One level of the hierarchy: a grid of buckets.
 struct Level {
     cell: f64,
     inv: f64,
     dims: [usize; 3],
-    /// First entry of each cell's list (or [`NONE`]).
-    head: Vec<u32>,
+    buckets: Vec<Bucket>,
     /// Entries listed here.
     count: usize,
 }
@@ -165,7 +173,7 @@ impl Level {
             cell,
             inv: 1.0 / cell,
             dims,
-            head: vec![NONE; dims.iter().product()],
+            buckets: vec![Bucket::default(); dims.iter().product()],
             count: 0,
         }
     }
@@ -191,27 +199,29 @@ impl Level {
     }
 }
 
-/// The hot part of an entry (see [`Guard::slots`]).
+/// What a scan reads of an entry, stored in its cell's bucket: its box (in
+/// `f32`, rounded outward) and its id.
 #[derive(Clone, Copy)]
-struct Slot {
+struct Item {
     b: Box32,
-    next: u32,
-    seen: u32,
+    e: u32,
 }
 
 /// The loose grids of current triangles and obstacles.
 pub(super) struct Guard {
     lo: DVec3,
     levels: Vec<Level>,
+    /// The buckets' items. A cell's entries lie side by side, so a scan
+    /// reads them in one stretch (a linked list made every entry a
+    /// dependent cache miss); a full bucket moves to the end with twice the
+    /// room, leaving its old stretch unused (the guard lives for one pass).
+    pool: Vec<Item>,
     // per entry
-    /// What a scan reads of each entry, side by side (one cache line holds
-    /// two): its box, the next entry on its list and the last query that
-    /// saw it.
-    slots: Vec<Slot>,
-    prev: Vec<u32>,
-    /// Level and cell of each listed entry (`NONE` cell: not listed).
+    /// Level, cell and place in the bucket of each listed entry (`NONE`
+    /// cell: not listed).
     level_of: Vec<u8>,
     cell_of: Vec<u32>,
+    place_of: Vec<u32>,
     /// The triangle of each entry as it was registered (faces change only
     /// after they are unregistered).
     tris: Vec<Tri>,
@@ -219,8 +229,9 @@ pub(super) struct Guard {
     entry: Vec<Vec<u32>>,
     /// Per entry: its (patch, face), or ([`NONE`], [`NONE`]) for an obstacle.
     owner: Vec<(u32, u32)>,
-    query: u32,
     made_boxes: Vec<Box32>,
+    /// Entries a query passes over (the faces an operation replaces).
+    skipped: Vec<u32>,
     /// New triangles must lie within this box (where the obstacles are complete).
     trusted: (DVec3, DVec3),
 }
@@ -274,23 +285,20 @@ impl Guard {
         let mut g = Guard {
             lo,
             levels,
-            slots: Vec::new(),
-            prev: Vec::new(),
+            pool: Vec::new(),
             level_of: Vec::new(),
             cell_of: Vec::new(),
+            place_of: Vec::new(),
             tris: Vec::new(),
             entry: patches
                 .iter()
                 .map(|st| vec![NONE; st.mesh.face_slots()])
                 .collect(),
             owner: Vec::new(),
-            query: 0,
             made_boxes: Vec::new(),
+            skipped: Vec::new(),
             trusted,
         };
-        // entries get their ids in the order of their cells, so that a scan
-        // reads the entries of a cell (and of the next cell on its row) from
-        // one stretch of memory rather than from all over
         let mut todo: Vec<(Tri, u32, u32)> =
             obstacles.into_iter().map(|t| (t, NONE, NONE)).collect();
         for (p, st) in patches.iter().enumerate() {
@@ -300,25 +308,38 @@ impl Guard {
                 }
             }
         }
-        // (sorted as keys and indices: the triangles are 72 bytes each)
-        let mut order: Vec<(u64, u32)> = todo
-            .iter()
-            .enumerate()
-            .map(|(i, item)| {
-                let (level, cell) = g.place(&item.0);
-                (((level as u64) << 32) | cell as u64, i as u32)
-            })
-            .collect();
-        order.sort_unstable();
-        g.slots.reserve(todo.len());
-        g.prev.reserve(todo.len());
-        g.level_of.reserve(todo.len());
-        g.cell_of.reserve(todo.len());
-        g.tris.reserve(todo.len());
-        g.owner.reserve(todo.len());
-        for (key, i) in order {
-            let (t, p, f) = todo[i as usize];
-            let e = g.add_at(t, (p, f), (key >> 32) as usize, key as u32);
+        let n = todo.len();
+        g.level_of.reserve(n);
+        g.cell_of.reserve(n);
+        g.place_of.reserve(n);
+        g.tris.reserve(n);
+        g.owner.reserve(n);
+        // first the buckets' sizes, then each bucket's stretch in the order
+        // of its cell (a bucket's room: its entries and a few more, so that
+        // the first operations there need not move it)
+        let places: Vec<(usize, u32)> = todo.iter().map(|item| g.place(&item.0)).collect();
+        for &(level, c) in &places {
+            g.levels[level].buckets[c as usize].cap += 1;
+        }
+        let mut start = 0u32;
+        for l in &mut g.levels {
+            for b in &mut l.buckets {
+                if b.cap > 0 {
+                    b.start = start;
+                    b.cap += 2;
+                    start += b.cap;
+                }
+            }
+        }
+        g.pool.resize(
+            start as usize,
+            Item {
+                b: Box32::outward(DVec3::ZERO, DVec3::ZERO),
+                e: NONE,
+            },
+        );
+        for ((t, p, f), (level, c)) in todo.into_iter().zip(places) {
+            let e = g.add_at(t, (p, f), level, c);
             if p != NONE {
                 g.entry[p as usize][f as usize] = e;
             }
@@ -355,22 +376,17 @@ impl Guard {
 
     /// [`Guard::add`] at its [`Guard::place`], known.
     fn add_at(&mut self, t: Tri, owner: (u32, u32), level: usize, c: u32) -> u32 {
-        let e = self.slots.len() as u32;
+        let e = self.tris.len() as u32;
         self.owner.push(owner);
-        self.slots.push(Slot {
-            b: t.box32(),
-            next: NONE,
-            seen: 0,
-        });
-        self.prev.push(NONE);
         self.level_of.push(0);
         self.cell_of.push(NONE);
+        self.place_of.push(NONE);
         self.tris.push(t);
         self.link_at(e, t, level, c);
         e
     }
 
-    /// Puts entry `e` (triangle `t`) on a list: at the finest level whose
+    /// Puts entry `e` (triangle `t`) in a bucket: at the finest level whose
     /// cells are at least twice its half box, in the cell of its centre.
     fn link(&mut self, e: u32, t: Tri) {
         let (level, c) = self.place(&t);
@@ -380,36 +396,45 @@ impl Guard {
     /// [`Guard::link`] at its [`Guard::place`], known.
     fn link_at(&mut self, e: u32, t: Tri, level: usize, c: u32) {
         let l = &mut self.levels[level];
-        let first = l.head[c as usize];
-        l.head[c as usize] = e;
-        l.count += 1;
-        self.slots[e as usize].next = first;
-        self.prev[e as usize] = NONE;
-        if first != NONE {
-            self.prev[first as usize] = e;
+        let b = &mut l.buckets[c as usize];
+        if b.len == b.cap {
+            // move to the end with twice the room
+            let start = self.pool.len();
+            let cap = (2 * b.cap).max(4);
+            self.pool
+                .extend_from_within(b.start as usize..(b.start + b.len) as usize);
+            self.pool.resize(
+                start + cap as usize,
+                Item {
+                    b: Box32::outward(DVec3::ZERO, DVec3::ZERO),
+                    e: NONE,
+                },
+            );
+            b.start = start as u32;
+            b.cap = cap;
         }
+        self.pool[(b.start + b.len) as usize] = Item { b: t.box32(), e };
+        self.place_of[e as usize] = b.len;
+        b.len += 1;
+        l.count += 1;
         self.level_of[e as usize] = level as u8;
         self.cell_of[e as usize] = c;
-        self.slots[e as usize].b = t.box32();
         self.tris[e as usize] = t;
     }
 
-    /// Takes entry `e` off its cell's list.
+    /// Takes entry `e` out of its bucket.
     fn unlink(&mut self, e: u32) {
         let c = self.cell_of[e as usize];
         if c == NONE {
             return;
         }
         let l = &mut self.levels[self.level_of[e as usize] as usize];
-        let (n, p) = (self.slots[e as usize].next, self.prev[e as usize]);
-        if p != NONE {
-            self.slots[p as usize].next = n;
-        } else {
-            l.head[c as usize] = n;
-        }
-        if n != NONE {
-            self.prev[n as usize] = p;
-        }
+        let b = &mut l.buckets[c as usize];
+        let at = self.place_of[e as usize];
+        b.len -= 1;
+        let last = self.pool[(b.start + b.len) as usize];
+        self.pool[(b.start + at) as usize] = last;
+        self.place_of[last.e as usize] = at;
         l.count -= 1;
         self.cell_of[e as usize] = NONE;
     }
@@ -470,24 +495,21 @@ impl Guard {
                 }
             }
         }
-        self.query = self.query.wrapping_add(1);
-        if self.query == 0 {
-            self.slots.iter_mut().for_each(|s| s.seen = 0);
-            self.query = 1;
-        }
-        let q = self.query;
+        let mut skipped = std::mem::take(&mut self.skipped);
+        skipped.clear();
         for &(p, f) in replaced {
             if let Some(&e) = self.entry[p as usize].get(f as usize) {
-                if e != NONE {
-                    self.slots[e as usize].seen = q;
+                if e != NONE && self.cell_of[e as usize] != NONE {
+                    skipped.push(e);
                 }
             }
         }
         let mut made_boxes = std::mem::take(&mut self.made_boxes);
         made_boxes.clear();
         made_boxes.extend(made.iter().map(|t| t.box32()));
-        let crossed = self.scan(made, &made_boxes, lo, hi, q);
+        let crossed = self.scan(made, &made_boxes, lo, hi, &skipped);
         self.made_boxes = made_boxes;
+        self.skipped = skipped;
         crossed.is_none()
     }
 
@@ -503,17 +525,12 @@ impl Guard {
         {
             return Some(None);
         }
-        self.query = self.query.wrapping_add(1);
-        if self.query == 0 {
-            self.slots.iter_mut().for_each(|s| s.seen = 0);
-            self.query = 1;
-        }
-        let e = self.scan(std::slice::from_ref(t), &[t.box32()], lo, hi, self.query)?;
+        let e = self.scan(std::slice::from_ref(t), &[t.box32()], lo, hi, &[])?;
         let (p, f) = self.owner[e as usize];
         Some((p != NONE).then_some((p, f)))
     }
 
-    /// The cells near [lo, hi]: the first entry not seen by query `q` that
+    /// The cells near [lo, hi]: the first entry, not one of `skipped`, that
     /// crosses a triangle of `made`, if any.
     fn scan(
         &self,
@@ -521,7 +538,7 @@ impl Guard {
         made_boxes: &[Box32],
         lo: DVec3,
         hi: DVec3,
-        q: u32,
+        skipped: &[u32],
     ) -> Option<u32> {
         let query_box = Box32::outward(lo, hi);
         for l in &self.levels {
@@ -534,21 +551,19 @@ impl Guard {
             for z in a[2]..=b[2] {
                 for y in a[1]..=b[1] {
                     let row = (z * l.dims[1] + y) * l.dims[0];
-                    for x in a[0]..=b[0] {
-                        let mut e = l.head[row + x];
-                        while e != NONE {
-                            let cur = e as usize;
-                            let slot = &self.slots[cur];
-                            e = slot.next;
-                            if slot.seen == q || !slot.b.overlaps(&query_box) {
+                    for bucket in &l.buckets[row + a[0]..=row + b[0]] {
+                        let items =
+                            &self.pool[bucket.start as usize..(bucket.start + bucket.len) as usize];
+                        for item in items {
+                            if !item.b.overlaps(&query_box) || skipped.contains(&item.e) {
                                 continue;
                             }
-                            let t = &self.tris[cur];
-                            let tb = slot.b;
+                            let t = &self.tris[item.e as usize];
+                            let tb = item.b;
                             if made.iter().zip(made_boxes).any(|(s, sb)| {
                                 sb.overlaps(&tb) && triangles_cross(&s.p, &s.k, &t.p, &t.k)
                             }) {
-                                return Some(cur as u32);
+                                return Some(item.e);
                             }
                         }
                     }
