@@ -57,6 +57,10 @@ pub(super) struct PatchState<'r> {
     /// Per face: its closed component (an index into
     /// [`Remesher::volumes`]) or [`NONE`].
     pub(super) component: Vec<u32>,
+    /// How far off the reference along the normal (mm) the vertices sit in
+    /// the offset iterations, on top of their chord offsets: what keeps
+    /// the labels' volumes (see `super::volume`).
+    pub(super) offset: f64,
 }
 
 /// How closely new triangles must follow the reference surface.
@@ -180,6 +184,9 @@ pub(super) struct RegionPatch<'r> {
     /// Per triangle: its closed component (an index into
     /// [`Region::volumes`]) or [`NONE`].
     pub(super) components: Vec<u32>,
+    /// Offset along the normal on top of the chord offsets (see
+    /// [`PatchState::offset`]).
+    pub(super) offset: f64,
 }
 
 impl<'r> Remesher<'r> {
@@ -862,6 +869,7 @@ impl<'r> Remesher<'r> {
         let sizing = self.sizing;
         let m = &self.patches[p as usize].mesh;
         let offset_chords = self.offset_chords;
+        let patch_offset = self.patches[p as usize].offset;
         // (the offsets come from the mesh before this pass moves anything:
         // offsets computed from offset vertices would feed on themselves)
         let gaps = if offset_chords {
@@ -907,28 +915,23 @@ impl<'r> Remesher<'r> {
                 let n = normal.normalize_or_zero();
                 let d = centroid / weights - at;
                 let tangential = d - n * d.dot(n);
-                let missing = if offset_chords {
-                    chord_offset(m, v, &gaps)
-                } else {
-                    0.0
-                };
-                // (a vertex at rest stays: no projection, no checks)
+                // (a vertex at rest stays: no projection, no checks; in
+                // the offset iterations each vertex takes its offset anew)
                 let rest = RELAX_AT_REST * sizing.at(at);
-                if tangential.length() < rest {
-                    if missing.abs() < rest {
-                        return None;
-                    }
-                    // only the offset: along the normal, off the reference
-                    // as far as the triangles ask (no projection needed)
-                    return Some((v, at + n * missing, m.hint[v as usize]));
+                if tangential.length() < rest && !offset_chords {
+                    return None;
                 }
                 let (onto, near) = fit
                     .reference
                     .project_from(at + tangential, m.hint[v as usize]);
-                // the offset the vertex has now (the projection undid it)
-                // and what its triangles still miss
+                // the offset off the reference: the chord offset, 3/4 of the
+                // centroid gap the triangles would have with their corners
+                // on the reference (the gap they have now plus the offset
+                // the vertex has now, which the projection undid), and the
+                // patch's offset that keeps the labels' volumes
                 let off = if offset_chords {
-                    (at + tangential - onto).dot(n) + missing
+                    let now = (at + tangential - onto).dot(n);
+                    0.75 * now + chord_offset(m, v, &gaps) + patch_offset
                 } else {
                     0.0
                 };
@@ -1277,6 +1280,7 @@ fn build_patch<'r>(pos: &[DVec3], kind: &[VertexKind], rp: RegionPatch<'r>) -> P
         reference: rp.reference,
         kept: rp.kept,
         component: rp.components,
+        offset: rp.offset,
     }
 }
 

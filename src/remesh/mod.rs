@@ -51,6 +51,7 @@ mod junction_sizing;
 pub mod network;
 pub mod sizing;
 pub mod smooth;
+mod volume;
 mod work;
 
 use glam::DVec3;
@@ -363,12 +364,54 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
         sizing,
         eps: FIT_VOXELS * voxel,
         offset_chords: false,
+        patch_offsets: vec![0.0; mesh.patches.len()],
     };
+    // every label's volume in the extraction, which the offset iterations
+    // give back (see `volume`)
+    let patch_labels: Vec<[usize; 2]> = mesh
+        .patches
+        .iter()
+        .map(|p| p.labels.map(usize::from))
+        .collect();
+    let extracted_volumes = volume::label_volumes(
+        &mesh.positions,
+        &mesh.triangles,
+        &mesh.triangle_patch,
+        &patch_labels,
+        mesh.labels.len(),
+    );
     for it in 0..params.iterations {
         if work.tris.is_empty() {
             break;
         }
         shared.offset_chords = it + CHORD_OFFSET_ITERATIONS >= params.iterations;
+        if shared.offset_chords {
+            let now = volume::label_volumes(
+                &work.pos,
+                &work.tris,
+                &work.patch,
+                &patch_labels,
+                mesh.labels.len(),
+            );
+            let deficit: Vec<f64> = extracted_volumes
+                .iter()
+                .zip(&now)
+                .map(|(want, have)| want - have)
+                .collect();
+            let areas = volume::patch_areas(&work.pos, &work.tris, &work.patch, patch_labels.len());
+            let more = volume::volume_offsets(&patch_labels, &areas, &deficit);
+            if std::env::var_os("SEPTA_DEBUG_ITER").is_some() {
+                let rel: Vec<String> = deficit
+                    .iter()
+                    .zip(&extracted_volumes)
+                    .map(|(d, v)| format!("{:.2}%", 100.0 * d / v.abs().max(1e-9)))
+                    .collect();
+                eprintln!("volume deficits before iteration {it}: {rel:?}");
+            }
+            for (o, m) in shared.patch_offsets.iter_mut().zip(more) {
+                *o += m;
+            }
+        }
         let longest = work
             .tris
             .par_iter()
@@ -395,6 +438,21 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
         }
     }
     timings.iterations = clock.elapsed().as_secs_f64();
+    if std::env::var_os("SEPTA_DEBUG_ITER").is_some() {
+        let now = volume::label_volumes(
+            &work.pos,
+            &work.tris,
+            &work.patch,
+            &patch_labels,
+            mesh.labels.len(),
+        );
+        let rel: Vec<String> = extracted_volumes
+            .iter()
+            .zip(&now)
+            .map(|(v, n)| format!("{:.2}%", 100.0 * (v - n) / v.abs().max(1e-9)))
+            .collect();
+        eprintln!("volume deficits after: {rel:?}");
+    }
     if std::env::var_os("SEPTA_DEBUG_ITER").is_some() {
         eprintln!(
             "remesh: smooth {:.3} s, setup {:.3} s, iterations {:.3} s",

@@ -52,6 +52,10 @@ pub(super) struct Shared<'r> {
     /// that the triangles lie on it on average (see
     /// `isotropic::chord_offset`): those of the last two iterations.
     pub(super) offset_chords: bool,
+    /// Per patch: how far off the reference (along its normal, mm) its
+    /// vertices sit in the offset iterations, on top of their chord offsets,
+    /// so that every label keeps its volume (see `volume`).
+    pub(super) patch_offsets: Vec<f64>,
 }
 
 /// The blocks of one pass: columns over a grid in the plane of the mesh's
@@ -454,6 +458,7 @@ impl Work {
                 hints: Vec::new(),
                 kept: Vec::new(),
                 components: Vec::new(),
+                offset: shared.patch_offsets.get(p as usize).copied().unwrap_or(0.0),
             })
             .collect();
         let mut local_component: HashMap<u32, u32> = HashMap::new();
