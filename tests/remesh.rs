@@ -166,8 +166,8 @@ fn thin_plate_survives() {
 /// edges within [0.8 h, 1.33 h] of the local target (89.8 % while a collapse
 /// bounded its new edges by the collapsed edge's target instead of their
 /// own; 90.2 % since), ≥ 97.5 % of triangles
-/// with minimum angle ≥ 20°, Hausdorff ≤ 1 voxel, volume change ≤ 5 % for
-/// labels over 1000 voxels, ≤ 1 % of the surface left as extracted. (This
+/// with minimum angle ≥ 20°, Hausdorff ≤ 1 voxel, volume change ≤ 2 % for
+/// labels over 1000 voxels (the per-patch volume offsets; 5 % before them), ≤ 1 % of the surface left as extracted. (This
 /// seed left 9 crossing pairs that the earlier remesher could only remove by
 /// remeshing everything again, then keeping the smoothed surface there.)
 #[test]
@@ -208,7 +208,7 @@ fn noisy_phantom_quality() {
     for l in &q.labels {
         if let (Some(change), Some(id)) = (l.change, vol.id_of(l.value)) {
             if counts[id as usize] > 1000 {
-                assert!(change.abs() <= 0.05, "label {}: {s}", l.value);
+                assert!(change.abs() <= 0.02, "label {}: {s}", l.value);
             }
         }
     }

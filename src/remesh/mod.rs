@@ -385,7 +385,11 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
             break;
         }
         shared.offset_chords = it + CHORD_OFFSET_ITERATIONS >= params.iterations;
-        if shared.offset_chords {
+        // the volume offsets only in the last iteration: the chord offsets of
+        // the one before it correct most of the same loss (the chords inside a
+        // curved sheet), and both at once corrected it about twice (a ball:
+        // 5.7 % short, then 6.6 % over)
+        if it + 1 == params.iterations {
             let now = volume::label_volumes(
                 &work.pos,
                 &work.tris,
