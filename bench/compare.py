@@ -369,6 +369,9 @@ def main() -> None:
                     "time, quality and validator figures (see compare_remesh.py)")
     ap.add_argument("--remesh-size", type=int, default=256, help="--remesh: phantom size (default 256)")
     ap.add_argument("--remesh-noise", default="0.01", help="--remesh: phantom noise (default 0.01)")
+    ap.add_argument("--remesh-volume", type=Path,
+                    help="--remesh: this label volume (NIfTI) instead of the phantom, e.g. "
+                    "../shared/data/mni152_2009a_tissue3.nii.gz; its tables go in a block of their own")
     ap.add_argument("--target-edge", type=float,
                     help="--remesh: target edge length L in mm (default: twice the mean voxel spacing, "
                     "septa's default)")

@@ -152,8 +152,15 @@ def main(args, np) -> None:
     noise = args.remesh_noise
     work = args.workdir or Path(tempfile.mkdtemp(prefix="septa-remesh-"))
     work.mkdir(parents=True, exist_ok=True)
-    name = f"heart{n}_noise{noise}"
-    vol = work / f"{name}.nii.gz"
+    given = getattr(args, "remesh_volume", None)
+    if given:
+        name = given.name.split(".")[0]
+        vol = given.resolve()
+        if not vol.exists():
+            raise SystemExit(f"{given}: no such file")
+    else:
+        name = f"heart{n}_noise{noise}"
+        vol = work / f"{name}.nii.gz"
     if not vol.exists():
         r = C.run([str(exe), "phantom", "-o", str(vol), "--size", str(n), "--noise", noise, "-q"])
         if r.returncode != 0:
@@ -177,8 +184,8 @@ def main(args, np) -> None:
         "date": datetime.datetime.now().strftime("%Y-%m-%d %H:%M"),
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
         f"{os.sysconf('SC_PAGE_SIZE') * os.sysconf('SC_PHYS_PAGES') / 2**30:.0f} GiB",
-        "volume": f"`septa phantom --size {n} --noise {noise}`, "
-        f"{'×'.join(map(str, labels.shape))}, spacing {spacing} mm, {len(values)} labels",
+        "volume": (f"`{given.name}`, " if given else f"`septa phantom --size {n} --noise {noise}`, ")
+        + f"{'×'.join(map(str, labels.shape))}, spacing {spacing} mm, {len(values)} labels",
         "target edge L": f"{L:g} mm = {L / max(spacing):g} voxels",
         "septa": f"{septa_version} (git {args.septa_rev or C.git_rev()})",
         "vtk": vtk.vtkVersion.GetVTKVersion() + f", {smp}",
@@ -289,10 +296,13 @@ def main(args, np) -> None:
     text = markdown(header, rows, tables)
     path = args.remesh_out
     doc = path.read_text() if path.exists() else ""
-    block = BEGIN + "\n" + text + "\n" + END
-    if BEGIN in doc and END in doc:
-        pre, rest = doc.split(BEGIN, 1)
-        doc = pre + block + rest.split(END, 1)[1]
+    # a given volume has its own block, the phantom the original one
+    begin, end = (BEGIN, END) if not given else (
+        BEGIN.replace("begin", f"{name} begin"), END.replace("end", f"{name} end"))
+    block = begin + "\n" + text + "\n" + end
+    if begin in doc and end in doc:
+        pre, rest = doc.split(begin, 1)
+        doc = pre + block + rest.split(end, 1)[1]
     else:
         doc = doc.rstrip("\n") + "\n\n" + block + "\n"
     path.write_text(doc)
