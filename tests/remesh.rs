@@ -167,7 +167,8 @@ fn thin_plate_survives() {
 /// bounded its new edges by the collapsed edge's target instead of their
 /// own; 90.2 % since), ≥ 97.5 % of triangles
 /// with minimum angle ≥ 20°, Hausdorff ≤ 1 voxel, volume change ≤ 2 % for
-/// labels over 1000 voxels (the per-patch volume offsets; 5 % before them), ≤ 1 % of the surface left as extracted. (This
+/// labels over 1000 voxels (the per-patch volume offsets; 5 % before them),
+/// ≤ 1 % of the surface left as extracted. (This
 /// seed left 9 crossing pairs that the earlier remesher could only remove by
 /// remeshing everything again, then keeping the smoothed surface there.)
 #[test]

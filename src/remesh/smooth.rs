@@ -2,7 +2,9 @@
 //! of junction curves as 1-D polylines (corners fixed), then of patch interiors
 //! (junction vertices fixed), every vertex confined to a box around its start
 //! position (`max_displacement` voxels along each index axis), so that thin
-//! walls and small structures cannot collapse or cross.
+//! walls and small structures cannot collapse or cross. Closed junction loops
+//! get their size back after the curve passes (a loop of a few vertices is all
+//! high frequency, which Taubin shrinks: see `keep_loop_sizes`).
 //!
 //! Updates are Jacobi-style (new positions from old), in parallel, so the result
 //! does not depend on the thread count.
