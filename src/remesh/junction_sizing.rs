@@ -11,9 +11,20 @@
 //! runs are shorter than the target. So, on the smoothed curves:
 //! - every point of a run gets the run's length as its limit (a third of it
 //!   for a closed curve without corners: three edges at least);
-//! - points along a run get the distance to the nearest run that shares no
-//!   corner with it (runs meeting at a corner come together there; that is
-//!   the corner's angle, not a gap).
+//! - points along a run get a limit from the distance w to the nearest run
+//!   that shares no corner with it (runs meeting at a corner come together
+//!   there; that is the corner's angle, not a gap): the strip between them
+//!   must hold a whole number of rows of triangles. One row spans it where
+//!   w is below the target (the target comes down to w). A strip too wide
+//!   for one row at the target (its diagonals would be longer than the
+//!   remesher keeps) and too narrow for two rows of equilateral triangles
+//!   has no mesh at the target whose edges are all in range: a vertex in
+//!   the middle of a strip 1.5 targets wide has its edges to both curves at
+//!   0.75 of the target, and no collapse can take it out (the edges across
+//!   the strip would be too long again); on a noisy head most short edges
+//!   were of that kind. There the target comes down to the edge of two rows
+//!   of equilateral triangles across the strip (three rows, in a narrow
+//!   band; wider strips always hold whole rows at the target).
 //!
 //! [`Sizing::limited`] takes these limits into the field and grades around
 //! them, so the targets beside short or close runs match them.
@@ -24,6 +35,40 @@ use rayon::prelude::*;
 use super::network::{Network, VertexKind};
 use super::sizing::Sizing;
 use crate::geom::predicates::closest_on_segment;
+use crate::mesh::quality::EDGE_RANGE_HI;
+
+/// The widest strip (in targets) that one row of triangles spans: a
+/// triangle on an edge of one curve with its apex on the other, above the
+/// edge's middle, has its two other edges no longer than the longest edge
+/// the remesher keeps.
+fn one_row() -> f64 {
+    (EDGE_RANGE_HI * EDGE_RANGE_HI - 0.25).sqrt()
+}
+
+/// The height of a row of equilateral triangles, in edges.
+const ROW_HEIGHT: f64 = 0.866_025_403_784_438_6;
+
+/// The widest strip (in targets) that [`strip_limit`] can limit: three rows
+/// of equilateral triangles. From four rows on, the fewest rows that fit
+/// are never wider than rows of equilateral triangles at the target
+/// ((k − 1) · [`one_row`] ≥ k · [`ROW_HEIGHT`] for k ≥ 4).
+const STRIP_REACH: f64 = 3.0 * ROW_HEIGHT;
+
+/// The target limit a strip of width `w` between two runs sets where the
+/// target is `t` (`None`: the strip leaves room for `t`). Below `t`, the
+/// strip itself (one row across). Wider, the strip holds k rows, the fewest
+/// that [`one_row`] allows, and the target is at most the edge of k rows of
+/// equilateral triangles across it: rows as wide as they are at `t` would
+/// leave the vertices between them at w / k from the curves, which may be
+/// shorter than the remesher keeps (a strip 1.5 targets wide: 0.75).
+fn strip_limit(w: f64, t: f64) -> Option<f64> {
+    if w < t {
+        return Some(w);
+    }
+    let rows = (w / (one_row() * t)).ceil().max(1.0);
+    let equilateral = w / (rows * ROW_HEIGHT);
+    (equilateral < t).then_some(equilateral)
+}
 
 /// A run of a junction curve: its vertices from corner to corner (or a
 /// whole closed curve without corners, first vertex repeated at the end).
@@ -128,8 +173,10 @@ pub(super) fn limits(net: &Network, pos: &[DVec3], sizing: &Sizing) -> Vec<(DVec
     limits
 }
 
-/// The distance from points along each run to the nearest run that shares
-/// no corner with it, where that is less than the run's other limit.
+/// The limits that the strips between runs set at points along each run
+/// (see [`strip_limit`]): from the distance to the nearest run that shares
+/// no corner with it, where that is below the target there (the field's, or
+/// the run's other limit).
 fn gap_limits(
     runs: &[Run],
     pos: &[DVec3],
@@ -157,7 +204,8 @@ fn gap_limits(
     if segs.is_empty() {
         return Vec::new();
     }
-    let cell = max + 0.5 * longest;
+    // (strips up to STRIP_REACH targets wide set limits)
+    let cell = STRIP_REACH * max + 0.5 * longest;
     let lo = segs
         .iter()
         .fold(DVec3::splat(f64::INFINITY), |lo, s| lo.min(s.1).min(s.2));
@@ -192,11 +240,12 @@ fn gap_limits(
         .par_iter()
         .enumerate()
         .flat_map_iter(|(r, pts)| {
-            let reach = by_length[r].min(max);
+            let run_limit = by_length[r].min(max);
             let (segs, in_cell, related, key, pack) = (&segs, &in_cell, &related, &key, &pack);
             pts.iter().filter_map(move |&p| {
                 let k = key(p);
-                let mut best = reach;
+                let target = sizing.at(p).min(run_limit);
+                let mut best = STRIP_REACH * target;
                 for dz in -1..=1 {
                     for dy in -1..=1 {
                         for dx in -1..=1 {
@@ -214,7 +263,7 @@ fn gap_limits(
                         }
                     }
                 }
-                (best < reach).then_some((p, best))
+                strip_limit(best, target).map(|t| (p, t))
             })
         })
         .collect()
@@ -268,11 +317,12 @@ mod tests {
 
     #[test]
     fn two_runs_a_gap_apart_limit_the_target_to_the_gap() {
-        // two long parallel runs 1.2 mm apart, and a third 10 mm away
+        // two long parallel runs 1.2 mm apart, and a third 12 mm away (room
+        // for four rows)
         let (net, pos) = network(&[
             line(DVec3::ZERO, DVec3::X * 30.0, 30),
             line(DVec3::Y * 1.2, DVec3::new(30.0, 1.2, 0.0), 30),
-            line(DVec3::Z * 10.0, DVec3::new(30.0, 0.0, 10.0), 30),
+            line(DVec3::Z * 12.0, DVec3::new(30.0, 0.0, 12.0), 30),
         ]);
         let l = limits(&net, &pos, &Sizing::uniform(4.0).limited(&[]));
         assert!(!l.is_empty());
@@ -280,6 +330,40 @@ mod tests {
             assert!(p.z < 1.0, "the far run has room: {p:?}");
             assert!((t - 1.2).abs() < 1e-9, "{p:?} {t}");
         }
+    }
+
+    #[test]
+    fn a_strip_between_one_row_and_two_gets_two_rows() {
+        // two long parallel runs 1.5 targets apart: one row across would have
+        // edges over 1.5 targets, two rows as wide as the target edges of
+        // 0.75 to the curves; the target comes down to two rows of
+        // equilateral triangles. 1.8 targets apart leave room for two rows.
+        let two_rows = |w: f64| w / (2.0 * ROW_HEIGHT);
+        for (gap, want) in [(1.5 * 4.0, Some(two_rows(6.0))), (1.8 * 4.0, None)] {
+            let (net, pos) = network(&[
+                line(DVec3::ZERO, DVec3::X * 60.0, 60),
+                line(DVec3::Y * gap, DVec3::new(60.0, gap, 0.0), 60),
+            ]);
+            let l = limits(&net, &pos, &Sizing::uniform(4.0).limited(&[]));
+            match want {
+                Some(t) => {
+                    assert!(l.iter().any(|&(p, _)| p.y == 0.0), "{l:?}");
+                    assert!(l.iter().any(|&(p, _)| p.y == gap), "{l:?}");
+                    assert!(l.iter().all(|&(_, x)| (x - t).abs() < 1e-9), "{l:?}");
+                }
+                None => assert!(l.is_empty(), "{l:?}"),
+            }
+        }
+        assert_eq!(
+            strip_limit(3.0, 4.0),
+            Some(3.0),
+            "one row, the strip's width"
+        );
+        assert_eq!(strip_limit(4.5, 4.0), None, "one row spans it");
+        assert_eq!(strip_limit(6.0, 4.0), Some(two_rows(6.0)));
+        // three rows fit at the target from 2.6 targets on
+        assert!(strip_limit(10.0, 4.0).is_some_and(|x| x < 4.0));
+        assert_eq!(strip_limit(10.6, 4.0), None);
     }
 
     #[test]
