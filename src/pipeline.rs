@@ -249,8 +249,11 @@ pub fn run(
                 params.target_edge
             );
             timer = Timer::start(Stage::Remesh, &message, progress);
+            let debug_clock = std::time::Instant::now();
             let sizing = params.sizing(pre.refined.grid(), v.geometry());
+            let sizing_s = debug_clock.elapsed().as_secs_f64();
             let out = remesh(&extracted, &sizing, &params)?;
+            let remesh_s = debug_clock.elapsed().as_secs_f64();
             let q = quality(
                 &out.mesh,
                 Some(&extracted),
@@ -259,6 +262,14 @@ pub fn run(
                     local: Some(&out.sizing),
                 },
             );
+            if std::env::var_os("SEPTA_DEBUG_ITER").is_some() {
+                let all = debug_clock.elapsed().as_secs_f64();
+                eprintln!(
+                    "sizing {sizing_s:.3} s, remesh {:.3} s, quality {:.3} s",
+                    remesh_s - sizing_s,
+                    all - remesh_s
+                );
+            }
             timings.push(timer.done(progress));
             remeshed = Some(Remeshed {
                 params,

@@ -152,6 +152,9 @@ pub(super) struct Remesher<'r> {
     /// Whether relaxation moves vertices off the reference by their chord
     /// offset ([`chord_offset`]): set for the last two iterations.
     pub(super) offset_chords: bool,
+    /// Whether guard queries are timed (`SEPTA_DEBUG_ITER`): two clock
+    /// reads per query otherwise cost more than many of them.
+    time_guard: bool,
 }
 
 /// What [`Remesher::new`] is built from: the region's vertices (ids are
@@ -229,6 +232,7 @@ impl<'r> Remesher<'r> {
             volumes,
             stats: [0; 10],
             offset_chords: false,
+            time_guard: std::env::var_os("SEPTA_DEBUG_ITER").is_some(),
         };
         r.rebuild_copies();
         r
@@ -277,9 +281,11 @@ impl<'r> Remesher<'r> {
                 return false;
             }
         }
-        let t = std::time::Instant::now();
+        let t = self.time_guard.then(std::time::Instant::now);
         let ok = self.guard.clear(&self.made, &self.replaced);
-        self.stats[2] += t.elapsed().as_nanos() as u64;
+        if let Some(t) = t {
+            self.stats[2] += t.elapsed().as_nanos() as u64;
+        }
         self.stats[3] += u64::from(!ok);
         if ok {
             if let Some((c, change)) = volume {
@@ -992,9 +998,11 @@ impl<'r> Remesher<'r> {
                 back.truncate(own);
                 self.stats[0] += 1;
                 self.stats[1] += 1;
-                let t = std::time::Instant::now();
+                let t = self.time_guard.then(std::time::Instant::now);
                 let hit = self.guard.crossing(&Tri::of_face(m, p, f));
-                self.stats[2] += t.elapsed().as_nanos() as u64;
+                if let Some(t) = t {
+                    self.stats[2] += t.elapsed().as_nanos() as u64;
+                }
                 let Some(other) = hit else {
                     self.guard.insert(m, p, f);
                     out[f as usize] = false;

@@ -311,7 +311,11 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
         params.max_displacement,
     );
     timings.smooth = clock.elapsed().as_secs_f64();
+    let clock = std::time::Instant::now();
     let sizing = &sizing.limited(&junction_sizing::limits(&net, &smoothed_pos, sizing));
+    if std::env::var_os("SEPTA_DEBUG_ITER").is_some() {
+        eprintln!("junction sizing {:.3} s", clock.elapsed().as_secs_f64());
+    }
 
     let clock = std::time::Instant::now();
     let groups = mesh.patch_triangles();
