@@ -48,6 +48,23 @@ fn remeshed(vol: &LabelVolume, r: &Resolved, target_edge: f64) -> (InterfaceMesh
     (mesh, out)
 }
 
+/// A label volume of `dims` (x fastest) on the kmeans head's anisotropic
+/// 2 × 2 × 3 mm voxels.
+fn on_head_voxels(dims: [usize; 3], values: &[i64]) -> LabelVolume {
+    let geometry = Geometry::new(
+        [2.0, 2.0, 3.0],
+        [0.0; 3],
+        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+    )
+    .unwrap();
+    LabelVolume::from_values(
+        Dims::new(dims[0], dims[1], dims[2]).unwrap(),
+        values,
+        geometry,
+    )
+    .unwrap()
+}
+
 /// Share of the surface left as extracted where no operation could be done
 /// safely.
 fn stuck(out: &Remeshed) -> f64 {
@@ -592,15 +609,9 @@ fn small_junction_loops_spread_their_vertices() {
                 .map_or(0, |b| b.2)
         })
         .collect();
-    let geometry = Geometry::new(
-        [2.0, 2.0, 3.0],
-        [0.0; 3],
-        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-    )
-    .unwrap();
-    let vol = LabelVolume::from_values(Dims::new(n, n, n).unwrap(), &values, geometry).unwrap();
+    let vol = on_head_voxels([n, n, n], &values);
     let r = Resolved::defaults(&vol);
-    let (_, out) = remeshed(&vol, &r, RemeshParams::default_target(&geometry));
+    let (_, out) = remeshed(&vol, &r, RemeshParams::default_target(vol.geometry()));
     assert_remeshed_cleanly("contacts", &out);
     let mesh = &out.mesh;
     let (mut loops, mut even) = (0, 0);
@@ -715,15 +726,9 @@ fn strips_between_noise_loops_hold_whole_rows() {
             }
         })
         .collect();
-    let geometry = Geometry::new(
-        [2.0, 2.0, 3.0],
-        [0.0; 3],
-        [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-    )
-    .unwrap();
-    let vol = LabelVolume::from_values(Dims::new(nx, ny, nz).unwrap(), &values, geometry).unwrap();
+    let vol = on_head_voxels([nx, ny, nz], &values);
     let r = Resolved::defaults(&vol);
-    let (_, out) = remeshed(&vol, &r, RemeshParams::default_target(&geometry));
+    let (_, out) = remeshed(&vol, &r, RemeshParams::default_target(vol.geometry()));
     assert_remeshed_cleanly("noisy interface", &out);
     let m = &out.mesh;
     let mut on_curve = vec![false; m.vertex_count()];
