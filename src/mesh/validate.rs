@@ -802,9 +802,13 @@ fn bbox_centre(p: &[DVec3]) -> DVec3 {
 /// For each component, how many other components of the same label contain it
 /// (ray parity along +x from a generic point next to its first triangle).
 ///
-/// Only components whose bounding box holds another's can contain it; their
-/// triangles go into a 2-D bucket grid over (y, z), and only components inside
-/// some such box cast a ray.
+/// Only components whose bounding box holds another's can contain it, and
+/// only components inside some such box cast a ray. The rays are few (one per
+/// component) and the triangles many, so the rays' start points go into a
+/// 2-D bucket grid over (y, z) and one parallel pass over the candidate
+/// triangles tests each against the points of the cells its box covers. A
+/// ray that passes too close to an edge to decide is cast again from another
+/// point of its triangle (up to [`PROBE_ATTEMPTS`] times).
 fn nesting_depths(
     list: &[(u32, DVec3, DVec3)],
     sides: &[u32],
@@ -831,8 +835,9 @@ fn nesting_depths(
         container.fill(true);
         contained.fill(true);
     }
+    let mut depth = vec![0; k];
     if !contained.iter().any(|&b| b) {
-        return vec![0; k];
+        return depth;
     }
     // component id -> index in `list` (looked up once per side: a table)
     let mut index_of = vec![u32::MAX; list.iter().map(|x| x.0 as usize + 1).max().unwrap_or(0)];
@@ -847,154 +852,135 @@ fn nesting_depths(
             firsts[i] = sd;
         }
     }
-    let is_candidate = |sd: u32| container[local(comp_of_side[sd as usize])];
-    let queries = contained.iter().filter(|&&b| b).count();
-    if queries <= 64 {
-        // few rays: one pass over the triangles of possible containers
-        let probes: Vec<(usize, DVec3)> = (0..k)
-            .filter(|&ci| contained[ci])
-            .map(|ci| (ci, probe_point(&oriented(firsts[ci]), 0)))
+    let candidates: Vec<u32> = sides
+        .par_iter()
+        .copied()
+        .filter(|&sd| container[local(comp_of_side[sd as usize])])
+        .collect();
+    let mut todo: Vec<usize> = (0..k).filter(|&c| contained[c]).collect();
+    for attempt in 0..PROBE_ATTEMPTS {
+        let rays: Vec<(DVec3, u32)> = todo
+            .iter()
+            .map(|&ci| (probe_point(&oriented(firsts[ci]), attempt), list[ci].0))
             .collect();
-        let mut hits: Vec<(usize, u32)> = sides
-            .par_iter()
-            .filter(|&&sd| is_candidate(sd))
-            .flat_map_iter(|&sd| {
-                let t = oriented(sd);
-                let (lo, hi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
-                let c = comp_of_side[sd as usize];
-                probes
-                    .iter()
-                    .filter(move |(ci, p)| {
-                        list[*ci].0 != c
-                            && p.y >= lo.y
-                            && p.y <= hi.y
-                            && p.z >= lo.z
-                            && p.z <= hi.z
-                            && p.x <= hi.x
-                    })
-                    .filter(move |(_, p)| ray_crosses(*p, &t) == Some(true))
-                    .map(move |(ci, _)| (*ci, c))
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        hits.sort_unstable();
-        let mut depth = vec![0; k];
+        let (hits, ambiguous) = cast_rays(&rays, &candidates, comp_of_side, oriented);
+        // the last attempt counts what it found, undecided crossings aside
+        let last = attempt + 1 == PROBE_ATTEMPTS;
+        let mut crossings: Vec<u32> = vec![0; rays.len()];
         for run in hits.chunk_by(|a, b| a == b) {
             if run.len() % 2 == 1 {
-                depth[run[0].0] += 1;
+                crossings[run[0].0 as usize] += 1;
             }
         }
-        return depth;
+        let mut again = Vec::new();
+        for (r, &ci) in todo.iter().enumerate() {
+            if !last && ambiguous.binary_search(&(r as u32)).is_ok() {
+                again.push(ci);
+            } else {
+                depth[ci] = crossings[r] as usize;
+            }
+        }
+        todo = again;
+        if todo.is_empty() {
+            break;
+        }
     }
-    // sides only (4 bytes each): their triangles are looked up when needed
-    let candidates: Vec<u32> = sides
-        .iter()
-        .copied()
-        .filter(|&sd| is_candidate(sd))
-        .collect();
-    let tri = |i: u32| oriented(candidates[i as usize]);
-    let root = |i: u32| comp_of_side[candidates[i as usize] as usize];
-    let ids = 0..candidates.len() as u32;
-    let (lo, hi) = ids.clone().fold(
-        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
-        |(lo, hi), i| {
-            let t = tri(i);
-            (
-                lo.min(t[0]).min(t[1]).min(t[2]),
-                hi.max(t[0]).max(t[1]).max(t[2]),
-            )
-        },
-    );
-    // cells about as wide as the triangles (in y and z): each triangle is
-    // listed in a few cells, and a ray meets only the triangles of its cell
-    // (cells of √(triangles) per axis listed each triangle in 20 to 30)
-    let mean_size = ids
-        .clone()
-        .map(|i| {
-            let t = tri(i);
-            let (tlo, thi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
-            (thi.y - tlo.y).max(thi.z - tlo.z)
-        })
-        .sum::<f64>()
-        / candidates.len().max(1) as f64;
-    let span = (hi.y - lo.y).max(hi.z - lo.z);
-    let n = if mean_size > 0.0 && span.is_finite() {
-        ((span / mean_size).ceil() as usize).clamp(1, 1024)
-    } else {
-        1
-    };
-    let cell = DVec3::new(
-        1.0,
-        ((hi.y - lo.y) / n as f64).max(1e-9),
-        ((hi.z - lo.z) / n as f64).max(1e-9),
-    );
+    depth
+}
+
+/// Rays cast per component before an undecided crossing is let be.
+const PROBE_ATTEMPTS: usize = 3;
+
+/// The +x rays from `rays` (start, own component) against the triangles of
+/// the sides `candidates`: the (ray, component) of every crossing, sorted,
+/// except with the ray's own component; and the rays (sorted, deduplicated)
+/// that passed too close to an edge to decide.
+fn cast_rays(
+    rays: &[(DVec3, u32)],
+    candidates: &[u32],
+    comp_of_side: &[u32],
+    oriented: &(dyn Fn(u32) -> [DVec3; 3] + Sync),
+) -> (Vec<(u32, u32)>, Vec<u32>) {
+    let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
+    for (p, _) in rays {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    // about one start point per cell
+    let n = ((rays.len() as f64).sqrt().ceil() as usize).clamp(1, 1024);
+    let cell_y = ((hi.y - lo.y) / n as f64).max(1e-300);
+    let cell_z = ((hi.z - lo.z) / n as f64).max(1e-300);
     let bucket = |y: f64, z: f64| -> (usize, usize) {
-        (
-            (((y - lo.y) / cell.y) as isize).clamp(0, n as isize - 1) as usize,
-            (((z - lo.z) / cell.z) as isize).clamp(0, n as isize - 1) as usize,
-        )
+        let b = |v: f64, lo: f64, cell: f64| {
+            ((((v - lo) / cell) as isize).clamp(0, n as isize - 1)) as usize
+        };
+        (b(y, lo.y, cell_y), b(z, lo.z, cell_z))
     };
-    let cells_of = |i: u32| {
-        let t = tri(i);
-        let (tlo, thi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
-        (bucket(tlo.y, tlo.z), bucket(thi.y, thi.z))
-    };
-    // compressed rows: triangles per (y, z) bucket
+    // compressed rows: rays per (y, z) bucket
     let mut start = vec![0u32; n * n + 1];
-    for i in ids.clone() {
-        let ((y0, z0), (y1, z1)) = cells_of(i);
-        for z in z0..=z1 {
-            for y in y0..=y1 {
-                start[y + n * z + 1] += 1;
-            }
-        }
+    for (p, _) in rays {
+        let (y, z) = bucket(p.y, p.z);
+        start[y + n * z + 1] += 1;
     }
     for c in 0..n * n {
         start[c + 1] += start[c];
     }
     let mut fill = start.clone();
-    let mut grid = vec![0u32; start[n * n] as usize];
-    for i in ids {
-        let ((y0, z0), (y1, z1)) = cells_of(i);
-        for z in z0..=z1 {
-            for y in y0..=y1 {
-                grid[fill[y + n * z] as usize] = i;
-                fill[y + n * z] += 1;
-            }
-        }
+    let mut grid = vec![0u32; rays.len()];
+    for (r, (p, _)) in rays.iter().enumerate() {
+        let (y, z) = bucket(p.y, p.z);
+        grid[fill[y + n * z] as usize] = r as u32;
+        fill[y + n * z] += 1;
     }
-    (0..k)
-        .map(|ci| {
-            if !contained[ci] {
-                return 0;
-            }
-            let t = oriented(firsts[ci]);
-            let mut p = probe_point(&t, 0);
-            let mut crossings: hashbrown::HashMap<u32, u32> = hashbrown::HashMap::new();
-            for attempt in 0..3 {
-                crossings.clear();
-                let (by, bz) = bucket(p.y, p.z);
-                let c = by + n * bz;
-                let mut ambiguous = false;
-                for &i in &grid[start[c] as usize..start[c + 1] as usize] {
-                    let root = root(i);
-                    if root == list[ci].0 {
-                        continue;
-                    }
-                    match ray_crosses(p, &tri(i)) {
-                        Some(true) => *crossings.entry(root).or_insert(0) += 1,
-                        Some(false) => {}
-                        None => ambiguous = true,
+    let (mut hits, mut ambiguous) = candidates
+        .par_iter()
+        .fold(
+            || (Vec::new(), Vec::new()),
+            |(mut hits, mut ambiguous): (Vec<(u32, u32)>, Vec<u32>), &sd| {
+                let t = oriented(sd);
+                let (tlo, thi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+                if thi.y < lo.y || tlo.y > hi.y || thi.z < lo.z || tlo.z > hi.z || thi.x < lo.x {
+                    return (hits, ambiguous);
+                }
+                let c = comp_of_side[sd as usize];
+                let ((y0, z0), (y1, z1)) = (bucket(tlo.y, tlo.z), bucket(thi.y, thi.z));
+                for z in z0..=z1 {
+                    for y in y0..=y1 {
+                        let cell = y + n * z;
+                        for &r in &grid[start[cell] as usize..start[cell + 1] as usize] {
+                            let (p, own) = rays[r as usize];
+                            if own == c
+                                || p.y < tlo.y
+                                || p.y > thi.y
+                                || p.z < tlo.z
+                                || p.z > thi.z
+                                || p.x > thi.x
+                            {
+                                continue;
+                            }
+                            match ray_crosses(p, &t) {
+                                Some(true) => hits.push((r, c)),
+                                Some(false) => {}
+                                None => ambiguous.push(r),
+                            }
+                        }
                     }
                 }
-                if !ambiguous {
-                    break;
-                }
-                p = probe_point(&t, attempt + 1);
-            }
-            crossings.values().filter(|&&c| c % 2 == 1).count()
-        })
-        .collect()
+                (hits, ambiguous)
+            },
+        )
+        .reduce(
+            || (Vec::new(), Vec::new()),
+            |(mut h1, mut a1), (h2, a2)| {
+                h1.extend(h2);
+                a1.extend(a2);
+                (h1, a1)
+            },
+        );
+    hits.sort_unstable();
+    ambiguous.sort_unstable();
+    ambiguous.dedup();
+    (hits, ambiguous)
 }
 
 /// A generic point next to triangle `t` (attempt 0, 1, …: different points):
