@@ -343,6 +343,12 @@ struct Timer {
 impl Timer {
     fn start(stage: Stage, message: &str, progress: &mut dyn FnMut(Progress<'_>)) -> Timer {
         progress(Progress::Started { stage, message });
+        crate::memory::set_activity(match stage {
+            Stage::Preprocess => &"preprocessing",
+            Stage::Extract => &"extracting",
+            Stage::Remesh => &"remeshing",
+            Stage::Validate => &"validating",
+        });
         Timer {
             stage,
             start: Instant::now(),

@@ -938,3 +938,57 @@ fn a_huge_claim_in_a_small_gzip_is_an_error_not_an_abort() {
         "{err}"
     );
 }
+
+/// Running out of memory is an error message and exit status 2 at whatever
+/// point the system refuses (`ulimit -v` from tight to ample, past the
+/// estimate with `--max-memory`): never Rust's abort (`memory allocation of
+/// N bytes failed`, SIGABRT), a panic (a thread that could not start) or a
+/// backtrace; and a run that failed leaves no output directory.
+#[test]
+#[cfg(target_os = "linux")]
+fn out_of_memory_is_an_error_at_any_limit() {
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/heart_phantom_48.nii.gz");
+    let mut refused = 0;
+    let mut finished = 0;
+    for limit_mb in [24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 1024] {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
+        let out = Command::new("sh")
+            .arg("-c")
+            .arg(format!(
+                "ulimit -v {} && exec \"$0\" \"$@\"",
+                limit_mb * 1024
+            ))
+            .arg(bin())
+            .args([
+                "extract",
+                "--no-remesh",
+                "--max-memory",
+                "100G",
+                "-q",
+                "-o",
+                "out",
+            ])
+            .arg(&input)
+            .current_dir(dir)
+            .env_remove("RUST_BACKTRACE")
+            .output()
+            .expect("run septa under ulimit");
+        let err = String::from_utf8_lossy(&out.stderr);
+        let case = format!("ulimit -v {limit_mb} MB: {:?}\n{err}", out.status);
+        for bad in ["panicked", "memory allocation of", "backtrace"] {
+            assert!(!err.contains(bad), "{case}");
+        }
+        match out.status.code() {
+            Some(0) => finished += 1,
+            Some(2) => {
+                assert!(err.starts_with("error: "), "{case}");
+                assert!(!dir.join("out").exists(), "{case}");
+                refused += usize::from(err.contains("out of memory"));
+            }
+            _ => panic!("{case}"),
+        }
+    }
+    assert!(refused > 0, "no limit was tight enough to test anything");
+    assert!(finished > 0, "no limit was ample enough to finish");
+}

@@ -242,6 +242,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
     outdir.check()?;
 
     let stage = ui.stage("reading volume");
+    septa::memory::set_activity(&"reading the volume");
     let (volume, config, sources) = read(&args.input)?;
     let read_time = stage.done();
     for s in &sources {
@@ -263,6 +264,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
         .map_err(|e| blame(e, args, &config))?;
 
     let stage = ui.stage("writing");
+    septa::memory::set_activity(&"writing the output");
     let manifest = &mut result.manifest;
     manifest.command = std::env::args().collect();
     manifest

@@ -193,6 +193,15 @@ fn parse_dtype(s: &str) -> std::result::Result<DataType, String> {
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     let ui = ui::Ui::new(cli.verbose, cli.quiet);
+    // the worker threads now, so that a limit that forbids them is an
+    // error message (rayon would panic at its first use)
+    if let Err(e) = rayon::ThreadPoolBuilder::new().build_global() {
+        eprintln!(
+            "error: could not start the worker threads ({e}): the process is at a limit of \
+             memory or threads (a container's, `ulimit -v` or `ulimit -u`)"
+        );
+        return ExitCode::from(2);
+    }
     // temporary output is removed when the run is stopped (Ctrl-C, kill)
     if let Err(e) = septa::io::temp::install_signal_cleanup() {
         ui.warn(e.to_string());

@@ -42,7 +42,11 @@ impl Ui {
             ProgressStyle::with_template("{spinner} {msg} {elapsed}").expect("valid template"),
         );
         bar.set_message(what.to_string());
-        bar.enable_steady_tick(Duration::from_millis(100));
+        // (a spinner nobody sees needs no thread of its own: one thread
+        // fewer that a tight limit could refuse)
+        if !bar.is_hidden() {
+            bar.enable_steady_tick(Duration::from_millis(100));
+        }
         Stage {
             bar,
             start: Instant::now(),

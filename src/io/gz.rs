@@ -146,7 +146,7 @@ fn read_into(
             ));
         }
         let start = out.len();
-        out.try_reserve(CHUNK).map_err(|_| {
+        crate::memory::fallible(|| out.try_reserve(CHUNK)).map_err(|_| {
             Error::input(
                 path,
                 format!(

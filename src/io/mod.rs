@@ -618,8 +618,7 @@ pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>> {
     let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
     let mut bytes = Vec::new();
-    bytes
-        .try_reserve_exact(usize::try_from(len).unwrap_or(usize::MAX))
+    crate::memory::fallible(|| bytes.try_reserve_exact(usize::try_from(len).unwrap_or(usize::MAX)))
         .map_err(|_| {
             Error::input(
                 path,
