@@ -718,7 +718,9 @@ impl<'r> Remesher<'r> {
     /// Moves curve vertices halfway toward the middle, along the
     /// reference curve, of their curve neighbours (by arc length: a
     /// straight-line midpoint lies off the curve, across a small loop even
-    /// on its far side), where no triangle turns over and the guard allows it.
+    /// on its far side), where no triangle turns over and the guard allows it;
+    /// a vertex closer to its target than [`RELAX_AT_REST`] of the local
+    /// target edge stays (a move that small changes nothing worth a query).
     fn relax_curve(&mut self, c: usize) {
         let n = self.curves[c].vertices.len();
         if n < 3 {
@@ -726,18 +728,25 @@ impl<'r> Remesher<'r> {
         }
         let closed = self.curves[c].closed;
         let reference = self.curves[c].reference;
+        // each vertex's arc length once (a BVH query), not once per
+        // neighbour that needs it
+        let arcs: Vec<Option<f64>> = self.curves[c]
+            .vertices
+            .iter()
+            .map(|&u| reference.locate(self.pos[u as usize]).map(|(_, s)| s))
+            .collect();
         let targets: Vec<(u32, DVec3)> = (0..n)
             .filter(|&i| closed || (i > 0 && i + 1 < n))
             .filter_map(|i| {
-                let cv = &self.curves[c].vertices;
-                let v = cv[i];
+                let v = self.curves[c].vertices[i];
                 if !self.movable_on_curve(v) {
                     return None;
                 }
-                let (a, b) = (cv[(i + n - 1) % n], cv[(i + 1) % n]);
-                let arc = |u: u32| reference.locate(self.pos[u as usize]).map(|(_, s)| s);
-                let s = relaxed_arc(reference, arc(a)?, arc(v)?, arc(b)?)?;
-                Some((v, reference.at(s)))
+                let (a, b) = (arcs[(i + n - 1) % n]?, arcs[(i + 1) % n]?);
+                let s = relaxed_arc(reference, a, arcs[i]?, b)?;
+                let (from, to) = (self.pos[v as usize], reference.at(s));
+                // a vertex at rest stays, as on the patches
+                (from.distance(to) >= RELAX_AT_REST * self.sizing.at(from)).then_some((v, to))
             })
             .collect();
         for (v, p) in targets {
