@@ -1154,3 +1154,107 @@ pub fn check_self_intersections(mesh: &InterfaceMesh) -> Check {
     }
     c
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{LabelInfo, Patch};
+    use crate::volume::Geometry;
+
+    /// The 12 triangles of the box [lo, hi], normals inward, over corners
+    /// `base + i` (corner i at bit 0: x, bit 1: y, bit 2: z). The +x side is
+    /// cut along its diagonal from corner 1 to corner 7 (y − lo.y = z − lo.z).
+    fn box_inward(base: u32, lo: DVec3, hi: DVec3) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+        let corner = |i: u32| {
+            DVec3::new(
+                [lo.x, hi.x][i as usize & 1],
+                [lo.y, hi.y][(i as usize >> 1) & 1],
+                [lo.z, hi.z][(i as usize >> 2) & 1],
+            )
+        };
+        let positions: Vec<DVec3> = (0..8).map(corner).collect();
+        let centre = (lo + hi) * 0.5;
+        let quads = [
+            [0, 2, 6, 4],
+            [1, 3, 7, 5],
+            [0, 1, 5, 4],
+            [2, 3, 7, 6],
+            [0, 1, 3, 2],
+            [4, 5, 7, 6],
+        ];
+        let mut triangles = Vec::new();
+        for [a, b, c, d] in quads {
+            for t in [[a, b, c], [a, c, d]] {
+                let [p, q, r] = t.map(corner);
+                let inward = (q - p).cross(r - p).dot(centre - p) > 0.0;
+                let t = if inward { t } else { [t[0], t[2], t[1]] };
+                triangles.push(t.map(|i| base + i));
+            }
+        }
+        (positions, triangles)
+    }
+
+    /// Label 1 between a box of label 2 and the outside, label 0; the first
+    /// ray the nesting check casts from the cavity (the box of label 2, a
+    /// component of label 1's surface) runs exactly along an edge of the
+    /// outer surface, where neither triangle can tell whether it is crossed.
+    /// The check casts again from another point and finds the cavity
+    /// nested; counting the undecided ray as no crossing would call the
+    /// cavity an outer surface facing its own label.
+    #[test]
+    fn a_ray_along_an_edge_is_cast_again() {
+        let outer = 10.0;
+        // the inner box, moved along z until its first triangle's probe
+        // point has y = z: the +x side of the outer box is cut along y = z
+        let build = |shift: f64| {
+            let (mut positions, mut triangles) = box_inward(
+                0,
+                DVec3::new(-1.7, -1.1, -1.3 + shift),
+                DVec3::new(1.9, 1.3, 1.1 + shift),
+            );
+            let (p, t) = box_inward(8, DVec3::splat(-outer), DVec3::splat(outer));
+            positions.extend(p);
+            triangles.extend(t);
+            let mut triangle_patch = vec![1; 12];
+            triangle_patch.extend([0; 12]);
+            InterfaceMesh {
+                positions,
+                triangles,
+                triangle_patch,
+                patches: vec![Patch { labels: [0, 1] }, Patch { labels: [1, 2] }],
+                junctions: Vec::new(),
+                labels: (0..3)
+                    .map(|v| LabelInfo {
+                        value: v,
+                        name: format!("label{v}"),
+                    })
+                    .collect(),
+                geometry: Geometry::identity(),
+            }
+        };
+        // (the box centre is the origin, so the validator's coordinates are these)
+        let probe = |mesh: &InterfaceMesh| {
+            probe_point(&mesh.triangles[0].map(|v| mesh.positions[v as usize]), 0)
+        };
+        let first = probe(&build(0.0));
+        let mesh = build(first.y - first.z);
+        let p = probe(&mesh);
+        assert_eq!(bbox_centre(&mesh.positions), DVec3::ZERO);
+        // the +x side of the outer box: both its triangles leave the ray undecided
+        let side: Vec<[DVec3; 3]> = mesh.triangles[12..]
+            .iter()
+            .map(|t| t.map(|v| mesh.positions[v as usize]))
+            .filter(|t| t.iter().all(|q| q.x == outer))
+            .collect();
+        assert_eq!(side.len(), 2);
+        for t in &side {
+            assert_eq!(ray_crosses(p, t), None, "the first ray runs along the cut");
+        }
+        let report = validate(&mesh, &Options::default());
+        assert!(report.passed(), "{}", report.summary());
+        let l1 = report.labels.iter().find(|l| l.value == 1).unwrap();
+        assert_eq!(l1.components, 2, "outer surface and cavity");
+        let shell = 8.0 * outer * outer * outer - 3.6 * 2.4 * 2.4;
+        assert!((l1.volume_mm3 - shell).abs() < 1e-9, "{}", l1.volume_mm3);
+    }
+}
