@@ -205,9 +205,10 @@ impl<'r> Remesher<'r> {
             trusted,
             volumes,
         } = region;
+        let mut local_ids = vec![NONE; pos.len()];
         let patches: Vec<PatchState> = patches
             .into_iter()
-            .map(|rp| build_patch(&pos, &kind, rp))
+            .map(|rp| build_patch(&pos, &kind, rp, &mut local_ids))
             .collect();
         let obstacles = obstacles
             .iter()
@@ -1254,9 +1255,15 @@ pub(super) struct RegionResult {
     pub(super) curves: Vec<Vec<u32>>,
 }
 
-fn build_patch<'r>(pos: &[DVec3], kind: &[VertexKind], rp: RegionPatch<'r>) -> PatchState<'r> {
-    // local ids in order of first use (a map: regions are a part of the mesh)
-    let mut local_of: HashMap<u32, u32> = HashMap::with_capacity(rp.triangles.len());
+/// The patch mesh of `rp`. `local_ids` (one slot per region vertex) is
+/// [`NONE`] everywhere and is left so.
+fn build_patch<'r>(
+    pos: &[DVec3],
+    kind: &[VertexKind],
+    rp: RegionPatch<'r>,
+    local_ids: &mut [u32],
+) -> PatchState<'r> {
+    // local ids in order of first use
     let mut lpos = Vec::new();
     let mut tag = Vec::new();
     let local_tris: Vec<[u32; 3]> = rp
@@ -1264,14 +1271,19 @@ fn build_patch<'r>(pos: &[DVec3], kind: &[VertexKind], rp: RegionPatch<'r>) -> P
         .iter()
         .map(|t| {
             t.map(|v| {
-                *local_of.entry(v).or_insert_with(|| {
+                let l = &mut local_ids[v as usize];
+                if *l == NONE {
+                    *l = lpos.len() as u32;
                     lpos.push(pos[v as usize]);
                     tag.push(v);
-                    (lpos.len() - 1) as u32
-                })
+                }
+                *l
             })
         })
         .collect();
+    for &v in &tag {
+        local_ids[v as usize] = NONE;
+    }
     let mut m = HalfedgeMesh::from_triangles(lpos, tag, &local_tris)
         .expect("patches of a valid interface mesh are manifolds");
     for v in 0..m.vertex_slots() {

@@ -186,6 +186,18 @@ const NEW: u32 = 1 << 31;
 /// No closed component (see [`ClosedComponents`]).
 const NONE_COMPONENT: u32 = u32::MAX;
 
+/// No local id (in [`LOCAL_IDS`]).
+const NO_LOCAL: u32 = u32::MAX;
+
+thread_local! {
+    /// Per worker thread: the local id of each global vertex in the block
+    /// being gathered, [`NO_LOCAL`] everywhere else between blocks. Kept from
+    /// block to block: a hash map per block cost more than the rest of the
+    /// gathering (taken out while in use, so a block started on this thread
+    /// meanwhile makes its own).
+    static LOCAL_IDS: std::cell::Cell<Vec<u32>> = const { std::cell::Cell::new(Vec::new()) };
+}
+
 /// The closed surface components of the working mesh: per triangle its
 /// component (or [`NONE_COMPONENT`]), per component the share of its signed
 /// enclosed volume each slab of a pass may use (its volume over the number
@@ -395,15 +407,20 @@ impl Work {
         let (lo, hi) = blocks.trusted(s);
 
         // local vertices: those of the slab's triangles first
-        let mut local: HashMap<u32, u32> = HashMap::with_capacity(own.len());
+        let mut local = LOCAL_IDS.with(|c| c.take());
+        if local.len() < self.pos.len() {
+            local.resize(self.pos.len(), NO_LOCAL);
+        }
         let mut global: Vec<u32> = Vec::with_capacity(own.len());
         let mut count: Vec<u32> = Vec::with_capacity(own.len());
         let mut local_of = |v: u32, global: &mut Vec<u32>, count: &mut Vec<u32>| -> u32 {
-            *local.entry(v).or_insert_with(|| {
+            let l = &mut local[v as usize];
+            if *l == NO_LOCAL {
+                *l = global.len() as u32;
                 global.push(v);
                 count.push(0);
-                (global.len() - 1) as u32
-            })
+            }
+            *l
         };
         let mut own_tris = Vec::with_capacity(own.len());
         for &t in own {
@@ -441,9 +458,8 @@ impl Work {
             })
             .collect();
         let is_free = |v: u32| {
-            local
-                .get(&v)
-                .is_some_and(|&l| (l as usize) < n_own_vertices && free[l as usize])
+            let l = local[v as usize];
+            l != NO_LOCAL && (l as usize) < n_own_vertices && free[l as usize]
         };
 
         // patches, by global id
@@ -501,7 +517,11 @@ impl Work {
             let n = cv.len();
             let edges = if closed { n } else { n - 1 };
             let owned = |i: usize| is_free(cv[i]) || is_free(cv[(i + 1) % n]);
-            let to_local = |v: u32| *local.get(&v).expect("a vertex of the slab's triangles");
+            let to_local = |v: u32| {
+                let l = local[v as usize];
+                assert_ne!(l, NO_LOCAL, "a vertex of the slab's triangles");
+                l
+            };
             if closed && (0..edges).all(owned) {
                 runs.push(CurveRun {
                     vertices: cv.iter().map(|&v| to_local(v)).collect(),
@@ -539,6 +559,12 @@ impl Work {
                 k += len;
             }
         }
+
+        // (every entry set here back to none, for the next block on this thread)
+        for &g in &global {
+            local[g as usize] = NO_LOCAL;
+        }
+        LOCAL_IDS.with(|c| c.set(local));
 
         // the guard's cells: about the mean edge length of the slab
         let mean_edge = own_tris
