@@ -193,6 +193,7 @@ pub fn extract(
                 rv,
                 faces: &faces,
                 lat,
+                positions: lattice::Positions::new(lat, dims.to_array()),
                 decompose: opts.decompose,
             };
             let planes = dims.nz as i32 + 1;

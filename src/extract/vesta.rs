@@ -20,7 +20,7 @@
 use glam::DVec3;
 
 use super::coarse_faces::CoarseFaces;
-use super::lattice::{Key, Lattice};
+use super::lattice::{Key, Lattice, Positions};
 use super::polygon::{centroid_fan, min_area_triangulation, vertex_fan};
 use super::{Decompose, Part};
 use crate::geom::predicates::is_degenerate;
@@ -98,6 +98,8 @@ pub(crate) struct Ctx<'a> {
     pub rv: &'a RefinedVolume,
     pub faces: &'a CoarseFaces,
     pub lat: Lattice,
+    /// The positions of lattice coordinates, looked up.
+    pub positions: Positions,
     pub decompose: Decompose,
 }
 
@@ -109,14 +111,17 @@ struct Vertex {
 }
 
 impl Vertex {
-    fn point(&self, lat: &Lattice) -> Pt {
-        (key_ref(lat.key(self.lattice)), lat.position(self.lattice))
+    fn point(&self, ctx: &Ctx) -> Pt {
+        (
+            key_ref(ctx.lat.key(self.lattice)),
+            ctx.positions.at(self.lattice),
+        )
     }
 
-    fn mid(&self, lat: &Lattice, e: usize) -> Pt {
+    fn mid(&self, ctx: &Ctx, e: usize) -> Pt {
         let d = edge_dir(e);
         let l = [0, 1, 2].map(|a| self.lattice[a] + d[a] * self.half[e]);
-        (key_ref(lat.key(l)), lat.position(l))
+        (key_ref(ctx.lat.key(l)), ctx.positions.at(l))
     }
 }
 
@@ -240,15 +245,15 @@ fn emit_cycle(
         if l < m {
             let mut pts = [(0u64, DVec3::ZERO); 16];
             let mut k = 0;
-            pts[k] = v.mid(&ctx.lat, steps[p].in_edge as usize);
+            pts[k] = v.mid(ctx, steps[p].in_edge as usize);
             k += 1;
             for r in t..=q {
                 pts[k] = steps[(start + r) % n].point;
                 k += 1;
             }
-            pts[k] = v.mid(&ctx.lat, steps[(start + q) % n].out_edge as usize);
+            pts[k] = v.mid(ctx, steps[(start + q) % n].out_edge as usize);
             k += 1;
-            pts[k] = v.point(&ctx.lat);
+            pts[k] = v.point(ctx);
             k += 1;
             emit_polygon(
                 part,
@@ -286,8 +291,8 @@ fn emit_chords(ctx: &Ctx, part: &mut Part, oct: &[LabelId; 8], v: &Vertex) {
         }
         if distinct >= 3 {
             part.chords.push(super::Chord {
-                a: v.point(&ctx.lat).0,
-                b: v.mid(&ctx.lat, e).0,
+                a: v.point(ctx).0,
+                b: v.mid(ctx, e).0,
                 labels,
                 count: distinct as u8,
             });
@@ -396,34 +401,73 @@ fn coarse_step(
     }
 }
 
-/// Neighbourhood of a refined voxel: the 27 coarse cells around it.
+/// Neighbourhood of a refined voxel: the 27 coarse cells around it, and the
+/// fine labels of all of them in one cube of (3s)³ fine cells (filled cell
+/// by cell: the fine path reads each fine label many times, and looking one
+/// up through its coarse cell, a division per axis, showed in the profile).
+/// One `Near` serves every refined voxel of a task ([`Near::centre_on`]).
 struct Near<'a> {
     cell: [i32; 3],
     sub: [Option<&'a [LabelId]>; 27],
     label: [LabelId; 27],
+    s: i32,
+    /// Fine labels, x fastest: fine cell `f` at `f − (cell − 1) s`.
+    cube: Vec<LabelId>,
 }
 
 impl<'a> Near<'a> {
-    fn new(rv: &'a RefinedVolume, c: [i32; 3]) -> Self {
-        let mut near = Near {
-            cell: c,
+    fn new(s: i32) -> Self {
+        Near {
+            cell: [0; 3],
             sub: [None; 27],
             label: [0; 27],
-        };
+            s,
+            cube: vec![0; (27 * s * s * s) as usize],
+        }
+    }
+
+    /// Makes this the neighbourhood of refined voxel `c`.
+    fn centre_on(&mut self, rv: &'a RefinedVolume, c: [i32; 3]) {
+        self.cell = c;
         for i in 0..27 {
             let n = [
                 c[0] + (i % 3) as i32 - 1,
                 c[1] + (i / 3 % 3) as i32 - 1,
                 c[2] + (i / 9) as i32 - 1,
             ];
-            near.sub[i] = if rv.is_refined(n) {
+            self.sub[i] = if rv.is_refined(n) {
                 rv.subvoxels(n)
             } else {
                 None
             };
-            near.label[i] = rv.coarse_label(n);
+            self.label[i] = rv.coarse_label(n);
         }
-        near
+        let s = self.s as usize;
+        let w = 3 * s;
+        for slot in 0..27 {
+            let (x0, y0, z0) = (slot % 3 * s, slot / 3 % 3 * s, slot / 9 * s);
+            for z in 0..s {
+                for y in 0..s {
+                    let at = x0 + w * (y0 + y + w * (z0 + z));
+                    let row = &mut self.cube[at..at + s];
+                    match self.sub[slot] {
+                        Some(sub) => {
+                            row.copy_from_slice(&sub[s * (y + s * z)..s * (y + s * z) + s])
+                        }
+                        None => row.fill(self.label[slot]),
+                    }
+                }
+            }
+        }
+    }
+
+    /// Index in [`Near::cube`] of fine cell `f`.
+    #[inline]
+    fn cube_index(&self, f: [i32; 3]) -> usize {
+        let w = 3 * self.s;
+        let r = [0, 1, 2].map(|a| f[a] - (self.cell[a] - 1) * self.s);
+        debug_assert!(r.iter().all(|&x| (0..w).contains(&x)));
+        (r[0] + w * (r[1] + w * r[2])) as usize
     }
 
     /// Coarse cell of a slot.
@@ -450,16 +494,8 @@ impl<'a> Near<'a> {
 
     /// Label of fine cell `f` (its coarse cell within one of the centre).
     #[inline]
-    fn fine_label(&self, f: [i32; 3], s: i32) -> LabelId {
-        let n = f.map(|v| v.div_euclid(s));
-        let i = self.slot(n);
-        match self.sub[i] {
-            Some(sub) => {
-                let l = [0, 1, 2].map(|a| f[a] - n[a] * s);
-                sub[(l[0] + s * (l[1] + s * l[2])) as usize]
-            }
-            None => self.label[i],
-        }
+    fn fine_label(&self, f: [i32; 3]) -> LabelId {
+        self.cube[self.cube_index(f)]
     }
 }
 
@@ -493,9 +529,11 @@ fn owns(near: &Near, u: [i32; 3], s: i32) -> bool {
 /// The fine path over a list of refined voxels, emitted into `part`.
 pub(crate) fn refined_cells(ctx: &Ctx, part: &mut Part, cells: &[[i32; 3]]) {
     let mut secs = Sections::new(ctx.lat.s);
+    let mut near = Near::new(ctx.lat.s);
     for &c in cells {
         secs.reset();
-        refined_cell(ctx, part, &mut secs, c);
+        near.centre_on(ctx.rv, c);
+        refined_cell(ctx, part, &mut secs, &near, c);
     }
 }
 
@@ -570,7 +608,7 @@ impl Sections {
         let r = self.refs[i];
         debug_assert!(r != 0, "a boundary face has a rectangle");
         let l = ctx.lat.unpack(r & !TAG_MASK);
-        ((r, ctx.lat.position(l)), self.unit[i])
+        ((r, ctx.positions.at(l)), self.unit[i])
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -595,9 +633,9 @@ impl Sections {
                 f[a] = plane;
                 f[b] = sb * s + u;
                 f[c] = sc * s + v;
-                let hi = near.fine_label(f, s);
+                let hi = near.fine_label(f);
                 f[a] = plane - 1;
-                let lo = near.fine_label(f, s);
+                let lo = near.fine_label(f);
                 if lo != hi {
                     code[(u + s * v) as usize] = pair_code(lo, hi);
                 }
@@ -655,41 +693,30 @@ impl Sections {
     }
 }
 
-fn refined_cell(ctx: &Ctx, part: &mut Part, secs: &mut Sections, c: [i32; 3]) {
-    let rv = ctx.rv;
+fn refined_cell(ctx: &Ctx, part: &mut Part, secs: &mut Sections, near: &Near, c: [i32; 3]) {
     let s = ctx.lat.s;
-    let near = Near::new(rv, c);
     let table = StarTable::disconnect();
     let ltable = LTable::get();
-    // fine labels of the voxel and a one-subvoxel border, local (u, v, w) in -1..=s
-    let w = (s + 2) as usize;
-    let mut block = vec![0 as LabelId; w * w * w];
-    for z in -1..=s {
-        for y in -1..=s {
-            for x in -1..=s {
-                block[(x + 1) as usize + w * ((y + 1) as usize + w * (z + 1) as usize)] =
-                    near.fine_label([c[0] * s + x, c[1] * s + y, c[2] * s + z], s);
-            }
-        }
-    }
+    let w = (3 * s) as usize;
     let offsets = octant_offsets([1, w, w * w]);
     for lw in 0..=s {
         for lv in 0..=s {
             for lu in 0..=s {
-                // octant 0 of local lattice point (lu, lv, lw) is block cell (lu-1, lv-1, lw-1)
-                let base = lu as usize + w * (lv as usize + w * lw as usize);
-                let c0 = block[base];
+                // octant 0 of local lattice point (lu, lv, lw) is fine cell (lu-1, lv-1, lw-1) of the voxel
+                let base =
+                    near.cube_index([c[0] * s + lu - 1, c[1] * s + lv - 1, c[2] * s + lw - 1]);
+                let c0 = near.cube[base];
                 let mut oct = [c0; 8];
                 let mut uniform = true;
                 for o in 1..8 {
-                    oct[o] = block[base + offsets[o]];
+                    oct[o] = near.cube[base + offsets[o]];
                     uniform &= oct[o] == c0;
                 }
-                if uniform || !owns(&near, [lu, lv, lw], s) {
+                if uniform || !owns(near, [lu, lv, lw], s) {
                     continue;
                 }
                 let p = [c[0] * s + lu, c[1] * s + lv, c[2] * s + lw];
-                fine_vertex(ctx, part, secs, &near, &oct, p, table, ltable);
+                fine_vertex(ctx, part, secs, near, &oct, p, table, ltable);
             }
         }
     }
