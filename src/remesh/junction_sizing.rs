@@ -205,30 +205,7 @@ fn gap_limits(
         return Vec::new();
     }
     // (strips up to STRIP_REACH targets wide set limits)
-    let cell = STRIP_REACH * max + 0.5 * longest;
-    let lo = segs
-        .iter()
-        .fold(DVec3::splat(f64::INFINITY), |lo, s| lo.min(s.1).min(s.2));
-    let key = |p: DVec3| -> [i64; 3] {
-        let q = (p - lo) / cell;
-        [q.x.floor() as i64, q.y.floor() as i64, q.z.floor() as i64]
-    };
-    let pack = |k: [i64; 3]| -> u64 {
-        // (cells along an axis: far fewer than 2^21 for any real volume)
-        let c = |x: i64| (x.clamp(0, (1 << 21) - 1)) as u64;
-        c(k[0]) | c(k[1]) << 21 | c(k[2]) << 42
-    };
-    let mut binned: Vec<(u64, u32)> = segs
-        .iter()
-        .enumerate()
-        .map(|(i, s)| (pack(key((s.1 + s.2) * 0.5)), i as u32))
-        .collect();
-    binned.par_sort_unstable();
-    let in_cell = |k: u64| -> &[(u64, u32)] {
-        let a = binned.partition_point(|e| e.0 < k);
-        let b = binned.partition_point(|e| e.0 <= k);
-        &binned[a..b]
-    };
+    let grid = SegmentGrid::new(&segs, 0.5 * (STRIP_REACH * max + 0.5 * longest));
     let related = |r: usize, s: usize| {
         r == s
             || match (runs[r].ends, runs[s].ends) {
@@ -241,32 +218,115 @@ fn gap_limits(
         .enumerate()
         .flat_map_iter(|(r, pts)| {
             let run_limit = by_length[r].min(max);
-            let (segs, in_cell, related, key, pack) = (&segs, &in_cell, &related, &key, &pack);
+            let (segs, grid, related) = (&segs, &grid, &related);
             pts.iter().filter_map(move |&p| {
-                let k = key(p);
                 let target = sizing.at(p).min(run_limit);
-                let mut best = STRIP_REACH * target;
-                for dz in -1..=1 {
-                    for dy in -1..=1 {
-                        for dx in -1..=1 {
-                            let c = [k[0] + dx, k[1] + dy, k[2] + dz];
-                            if c.iter().any(|&x| x < 0) {
-                                continue;
-                            }
-                            for &(_, i) in in_cell(pack(c)) {
-                                let (s, a, b) = segs[i as usize];
-                                if related(r, s as usize) {
-                                    continue;
-                                }
-                                best = best.min((closest_on_segment(p, a, b) - p).length());
-                            }
-                        }
+                let reach = STRIP_REACH * target;
+                // (a segment within `reach` of p has its midpoint within
+                // reach + longest / 2 of it)
+                let mut nearest2 = f64::INFINITY;
+                grid.for_each_near(p, reach + 0.5 * longest, |i| {
+                    let (s, a, b) = segs[i as usize];
+                    if !related(r, s as usize) {
+                        nearest2 = nearest2.min((closest_on_segment(p, a, b) - p).length_squared());
                     }
-                }
-                strip_limit(best, target).map(|t| (p, t))
+                });
+                strip_limit(reach.min(nearest2.sqrt()), target).map(|t| (p, t))
             })
         })
         .collect()
+}
+
+/// Segments binned by midpoint in a uniform grid (one array, cell by cell),
+/// for the gap queries of [`gap_limits`]: a query reads the cells within its
+/// own reach, which is the target there, not the largest one.
+struct SegmentGrid {
+    lo: DVec3,
+    inv: f64,
+    dims: [usize; 3],
+    /// Per cell: where its segments start in `ids` (one more entry at the end).
+    start: Vec<u32>,
+    ids: Vec<u32>,
+}
+
+impl SegmentGrid {
+    /// Most cells the grid may have (the cell grows beyond this).
+    const MAX_CELLS: usize = 1 << 22;
+
+    fn new(segs: &[(u32, DVec3, DVec3)], cell: f64) -> Self {
+        let mid = |s: &(u32, DVec3, DVec3)| (s.1 + s.2) * 0.5;
+        let (lo, hi) = segs.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), s| (lo.min(mid(s)), hi.max(mid(s))),
+        );
+        let ext = (hi - lo).max(DVec3::ZERO);
+        let mut cell = cell.max(ext.max_element() * 1e-6).max(1e-9);
+        let dims_for = |c: f64| ext.to_array().map(|e| (e / c).floor() as usize + 1);
+        while dims_for(cell).iter().product::<usize>() > Self::MAX_CELLS {
+            cell *= 1.26;
+        }
+        let dims = dims_for(cell);
+        let mut grid = SegmentGrid {
+            lo,
+            inv: 1.0 / cell,
+            dims,
+            start: vec![0; dims.iter().product::<usize>() + 1],
+            ids: vec![0; segs.len()],
+        };
+        let cells: Vec<usize> = segs
+            .iter()
+            .map(|s| grid.index(grid.cell_of(mid(s))))
+            .collect();
+        for &c in &cells {
+            grid.start[c + 1] += 1;
+        }
+        for c in 1..grid.start.len() {
+            grid.start[c] += grid.start[c - 1];
+        }
+        let mut fill = grid.start.clone();
+        for (i, &c) in cells.iter().enumerate() {
+            grid.ids[fill[c] as usize] = i as u32;
+            fill[c] += 1;
+        }
+        grid
+    }
+
+    /// The cell holding `p` (clamped to the grid).
+    #[inline]
+    fn cell_of(&self, p: DVec3) -> [usize; 3] {
+        let q = (p - self.lo) * self.inv;
+        [0, 1, 2].map(|a| {
+            let x = q[a];
+            if x.is_nan() || x <= 0.0 {
+                0
+            } else {
+                (x as usize).min(self.dims[a] - 1)
+            }
+        })
+    }
+
+    #[inline]
+    fn index(&self, c: [usize; 3]) -> usize {
+        c[0] + self.dims[0] * (c[1] + self.dims[1] * c[2])
+    }
+
+    /// Calls `f` with every segment whose midpoint lies in a cell within `r`
+    /// of `p` (so every one whose midpoint is within `r`).
+    fn for_each_near(&self, p: DVec3, r: f64, mut f: impl FnMut(u32)) {
+        let (a, b) = (
+            self.cell_of(p - DVec3::splat(r)),
+            self.cell_of(p + DVec3::splat(r)),
+        );
+        for z in a[2]..=b[2] {
+            for y in a[1]..=b[1] {
+                let row = self.index([0, y, z]);
+                let (s, e) = (self.start[row + a[0]], self.start[row + b[0] + 1]);
+                for &i in &self.ids[s as usize..e as usize] {
+                    f(i);
+                }
+            }
+        }
+    }
 }
 
 #[cfg(test)]
