@@ -22,7 +22,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::{InterfaceMesh, fmt_point};
-use crate::geom::Dsu;
+use crate::geom::dsu::AtomicDsu;
 use crate::geom::intersect::self_intersections;
 use crate::geom::predicates::is_degenerate;
 use crate::preprocess::RefinedVolume;
@@ -173,9 +173,9 @@ pub fn validate(mesh: &InterfaceMesh, opts: &Options) -> Report {
         Err(report) => return report,
     };
     let stars = Stars::new(mesh);
-    let mut sides = Dsu::new(2 * mesh.triangles.len());
-    let local = check_local(mesh, &stars, &mut sides);
-    let (orientation, labels) = check_component_orientation(mesh, sides);
+    let sides = AtomicDsu::new(2 * mesh.triangles.len());
+    let local = check_local(mesh, &stars, &sides);
+    let (orientation, labels) = check_component_orientation(mesh, &sides);
     report.checks.push(local.open);
     report.checks.push(local.orient);
     report.checks.push(local.fans);
@@ -463,13 +463,12 @@ impl Stars {
     }
 }
 
-/// Failures found around vertices, and the side pairs to merge into components.
+/// Failures found around vertices.
 #[derive(Default)]
 struct LocalFindings {
     open: Check,
     orient: Check,
     fans: Check,
-    unions: Vec<(u32, u32)>,
 }
 
 impl LocalFindings {
@@ -478,7 +477,6 @@ impl LocalFindings {
             open: Check::new("label surfaces closed"),
             orient: Check::new("label surfaces oriented"),
             fans: Check::new("label surfaces manifold at vertices"),
-            unions: Vec::new(),
         }
     }
 
@@ -495,56 +493,48 @@ impl LocalFindings {
                 }
             }
         }
-        self.unions.extend(other.unions);
         self
     }
 }
 
 /// Invariant 1 around every vertex: at each edge, each label has exactly two
 /// of its surface triangles, running opposite ways; around each vertex, each
-/// label's triangles form one fan. Also collects which triangle sides
-/// (side `2t` = lower label, `2t + 1` = higher) are connected across edges.
-fn check_local(mesh: &InterfaceMesh, stars: &Stars, sides: &mut Dsu) -> LocalFindings {
+/// label's triangles form one fan. Also merges in `sides` the triangle sides
+/// (side `2t` = lower label, `2t + 1` = higher) connected across edges.
+fn check_local(mesh: &InterfaceMesh, stars: &Stars, sides: &AtomicDsu) -> LocalFindings {
     let n = mesh.positions.len();
     let chunk = (n / 256).max(1024);
-    let chunks = n.div_ceil(chunk);
-    // a few chunks per thread at a time, their side pairs merged before
-    // the next ones are found: the pairs (about one per triangle corner)
-    // never all exist at once
-    let batch = 4 * rayon::current_num_threads().max(1);
-    let mut found = LocalFindings::new();
-    for first in (0..chunks).step_by(batch) {
-        let part = (first..(first + batch).min(chunks))
-            .into_par_iter()
-            .map(|c| {
-                let mut f = LocalFindings::new();
-                let mut edges: Vec<(u32, u32, i8)> = Vec::new();
-                let mut sides: Vec<(LabelId, i8, u32)> = Vec::new();
-                let mut fan: Vec<(LabelId, u32, u32)> = Vec::new();
-                for u in c * chunk..((c + 1) * chunk).min(n) {
-                    check_vertex(
-                        mesh, stars, u as u32, &mut f, &mut edges, &mut sides, &mut fan,
-                    );
-                }
-                f
-            })
-            .reduce(LocalFindings::new, LocalFindings::merge);
-        for &(a, b) in &part.unions {
-            sides.union(a, b);
-        }
-        found = found.merge(LocalFindings {
-            unions: Vec::new(),
-            ..part
-        });
-    }
-    found
+    (0..n.div_ceil(chunk))
+        .into_par_iter()
+        .map(|c| {
+            let mut f = LocalFindings::new();
+            let mut edges: Vec<(u32, u32, i8)> = Vec::new();
+            let mut around: Vec<(LabelId, i8, u32)> = Vec::new();
+            let mut fan: Vec<(LabelId, u32, u32)> = Vec::new();
+            for u in c * chunk..((c + 1) * chunk).min(n) {
+                check_vertex(
+                    mesh,
+                    stars,
+                    u as u32,
+                    &mut f,
+                    sides,
+                    &mut edges,
+                    &mut around,
+                    &mut fan,
+                );
+            }
+            f
+        })
+        .reduce(LocalFindings::new, LocalFindings::merge)
 }
 
+#[allow(clippy::too_many_arguments)]
 fn check_vertex(
     mesh: &InterfaceMesh,
     stars: &Stars,
     u: u32,
     f: &mut LocalFindings,
+    side_sets: &AtomicDsu,
     edges: &mut Vec<(u32, u32, i8)>,
     sides: &mut Vec<(LabelId, i8, u32)>,
     fan: &mut Vec<(LabelId, u32, u32)>,
@@ -597,7 +587,7 @@ fn check_vertex(
                 });
             }
             for w in run.windows(2) {
-                f.unions.push((w[0].2, w[1].2));
+                side_sets.union(w[0].2, w[1].2);
             }
         }
     }
@@ -645,7 +635,10 @@ struct Component {
 }
 
 /// Connected components of each label's surface and their orientation.
-fn check_component_orientation(mesh: &InterfaceMesh, mut dsu: Dsu) -> (Check, Vec<LabelSurface>) {
+fn check_component_orientation(
+    mesh: &InterfaceMesh,
+    dsu: &AtomicDsu,
+) -> (Check, Vec<LabelSurface>) {
     let mut check = Check::new("surfaces face away from their label");
     let n_sides = 2 * mesh.triangles.len();
     let centre = bbox_centre(&mesh.positions);
@@ -664,10 +657,14 @@ fn check_component_orientation(mesh: &InterfaceMesh, mut dsu: Dsu) -> (Check, Ve
     // component of every side, and per-component volume and box
     // (the root of a set is its smallest side, so it is numbered before the
     // other sides of its set)
+    let roots: Vec<u32> = (0..n_sides as u32)
+        .into_par_iter()
+        .map(|side| dsu.find(side))
+        .collect();
     let mut comp_of_side = vec![0u32; n_sides];
     let mut comps: Vec<Component> = Vec::new();
     for side in 0..n_sides as u32 {
-        let r = dsu.find(side);
+        let r = roots[side as usize];
         if r == side {
             comp_of_side[side as usize] = comps.len() as u32;
             comps.push(Component {
@@ -687,7 +684,7 @@ fn check_component_orientation(mesh: &InterfaceMesh, mut dsu: Dsu) -> (Check, Ve
         comp.lo = comp.lo.min(a).min(b).min(c);
         comp.hi = comp.hi.max(a).max(b).max(c);
     }
-    drop(dsu);
+    drop(roots);
     let labels = mesh.labels_with_patches();
     let mut comps_of: Vec<Vec<u32>> =
         vec![Vec::new(); labels.last().map_or(0, |&l| l as usize + 1)];
