@@ -18,6 +18,8 @@
 //! removals left it, so chains of such vertices shrink to their two ends and
 //! the result does not depend on the thread count.
 
+use rayon::prelude::*;
+
 use crate::geom::incidence;
 use crate::mesh::JunctionCurve;
 
@@ -48,7 +50,7 @@ impl LatticeCoords for [Option<[i32; 3]>] {
 /// `lattice` gives the exact lattice coordinates of each vertex. Returns
 /// which vertices were dissolved; `tris` and `patch` keep only the live
 /// triangles.
-pub(crate) fn dissolve_straight<L: LatticeCoords + ?Sized>(
+pub(crate) fn dissolve_straight<L: LatticeCoords + Sync + ?Sized>(
     lattice: &L,
     tris: &mut Vec<[u32; 3]>,
     patch: &mut Vec<u32>,
@@ -57,6 +59,7 @@ pub(crate) fn dissolve_straight<L: LatticeCoords + ?Sized>(
     let n = lattice.len();
     let mut curve_nb = curve_neighbours(n, curves);
     let (start, mut list) = incidence::rows(n, tris);
+    let hinged = hinged_stars(lattice, tris, &start, &list);
     let mut dead = vec![false; n];
     let mut star: Vec<(u32, [u32; 3])> = Vec::with_capacity(16);
     let mut scratch = Scratch::default();
@@ -64,7 +67,7 @@ pub(crate) fn dissolve_straight<L: LatticeCoords + ?Sized>(
         let Some(pv) = lattice.at(v) else {
             continue;
         };
-        if curve_nb[v as usize][0] == FIXED {
+        if curve_nb[v as usize][0] == FIXED || !hinged[v as usize] {
             continue;
         }
         let row = start[v as usize] as usize..start[v as usize + 1] as usize;
@@ -123,6 +126,65 @@ pub(crate) fn dissolve_straight<L: LatticeCoords + ?Sized>(
     tris.truncate(k);
     patch.truncate(k);
     dead
+}
+
+/// Per vertex: whether the planes of its triangles (as the mesh is now)
+/// have a direction in common, or the vertex has no lattice coordinates
+/// itself or at a neighbour (then it is not decided here). A vertex that is
+/// dissolved has all its triangles hinged on the line through it, so one
+/// without such a direction never is; and dissolving other vertices keeps
+/// the planes of a vertex's triangles (a pair is replaced by one triangle in
+/// the pair's plane), so this, found for every vertex at once and in
+/// parallel, holds through the whole serial pass. Decided exactly on the
+/// lattice coordinates.
+fn hinged_stars<L: LatticeCoords + Sync + ?Sized>(
+    lattice: &L,
+    tris: &[[u32; 3]],
+    start: &[u32],
+    list: &[u32],
+) -> Vec<bool> {
+    let cross = |a: [i128; 3], b: [i128; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let normal = |t: [u32; 3]| -> Option<[i128; 3]> {
+        let [a, b, c] = [lattice.at(t[0])?, lattice.at(t[1])?, lattice.at(t[2])?];
+        let d = |p: [i32; 3], q: [i32; 3]| [0, 1, 2].map(|k| (q[k] - p[k]) as i128);
+        Some(cross(d(a, b), d(a, c)))
+    };
+    (0..lattice.len())
+        .into_par_iter()
+        .map(|v| {
+            let row = &list[start[v] as usize..start[v + 1] as usize];
+            // the first normal, then the first one not parallel to it: their
+            // cross product is the only direction every plane could share
+            let mut first: Option<[i128; 3]> = None;
+            let mut axis: Option<[i128; 3]> = None;
+            for &t in row {
+                let Some(n) = normal(tris[t as usize]) else {
+                    return true;
+                };
+                match (first, axis) {
+                    (None, _) => first = Some(n),
+                    (Some(f), None) => {
+                        let c = cross(f, n);
+                        if c != [0; 3] {
+                            axis = Some(c);
+                        }
+                    }
+                    (_, Some(d)) => {
+                        if n[0] * d[0] + n[1] * d[1] + n[2] * d[2] != 0 {
+                            return false;
+                        }
+                    }
+                }
+            }
+            true
+        })
+        .collect()
 }
 
 /// Buffers of [`straight_merge`], reused from vertex to vertex.
@@ -394,6 +456,33 @@ mod tests {
         let dead = dissolve_straight(lattice.as_slice(), &mut tris, &mut patch, &[]);
         assert!(dead[4]);
         assert_eq!(tris, vec![[2, 0, 1], [3, 1, 0]]);
+    }
+
+    #[test]
+    fn only_stars_hinged_on_a_line_are_candidates() {
+        // the strip, folded along the x axis (apex 3 below the plane, out
+        // of it): every plane at vertex 4 holds the x direction
+        let (mut lattice, tris) = strip();
+        lattice[3] = Some([2, -3, 5]);
+        let (start, list) = incidence::rows(lattice.len(), &tris);
+        assert!(hinged_stars(&lattice[..], &tris, &start, &list)[4]);
+        // a corner of a box: three planes with no direction in common
+        let corner = vec![
+            Some([0, 0, 0]),
+            Some([1, 0, 0]),
+            Some([0, 1, 0]),
+            Some([0, 0, 1]),
+        ];
+        let tris = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2]];
+        let (start, list) = incidence::rows(corner.len(), &tris);
+        let hinged = hinged_stars(&corner[..], &tris, &start, &list);
+        assert!(!hinged[0], "three planes at the corner");
+        assert!(hinged[1], "two planes at the other corners");
+        // a neighbour off the lattice: not decided here
+        let mut off = corner.clone();
+        off[3] = None;
+        let hinged = hinged_stars(&off[..], &tris, &start, &list);
+        assert!(hinged[0]);
     }
 
     #[test]
