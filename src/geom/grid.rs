@@ -3,7 +3,10 @@
 //! a point a fraction of a cell from a surface) read one to eight cells,
 //! which is cheaper than descending a tree.
 
+use std::sync::atomic::{AtomicU32, Ordering};
+
 use glam::DVec3;
+use rayon::prelude::*;
 
 /// Boxes (of triangles, segments...) binned into the cells of a uniform grid they overlap
 /// (compressed rows by counting sort). Queries near the surface (the usual
@@ -22,6 +25,39 @@ pub struct CellGrid {
 
 /// Cells per triangle the grid aims at (a few triangles per occupied cell).
 const CELLS_PER_TRIANGLE: f64 = 8.0;
+
+/// Boxes per parallel task when binning (fewer are not worth a task).
+const PAR_BOXES: usize = 1 << 14;
+
+/// Sorts the items of every cell (`items[start[c]..start[c + 1]]`), in
+/// parallel over runs of cells.
+fn sort_cells(items: &mut [u32], start: &[u32]) {
+    let ncells = start.len() - 1;
+    // runs of cells holding about PAR_BOXES items each, cut at cell borders
+    let mut cuts = vec![0usize];
+    let mut c = 0;
+    while c < ncells {
+        let want = start[c] as usize + PAR_BOXES;
+        c = start[c..ncells]
+            .partition_point(|&s| (s as usize) < want)
+            .max(1)
+            + c;
+        cuts.push(c.min(ncells));
+    }
+    let mut runs = Vec::with_capacity(cuts.len());
+    let mut rest = items;
+    for w in cuts.windows(2) {
+        let (run, tail) = rest.split_at_mut((start[w[1]] - start[w[0]]) as usize);
+        runs.push((w[0], w[1], run));
+        rest = tail;
+    }
+    runs.into_par_iter().for_each(|(a, b, run)| {
+        let base = start[a];
+        for c in a..b {
+            run[(start[c] - base) as usize..(start[c + 1] - base) as usize].sort_unstable();
+        }
+    });
+}
 
 impl CellGrid {
     /// A grid over the boxes `boxes[i] = (lo, hi)`: cells of about the mean
@@ -57,21 +93,35 @@ impl CellGrid {
             items: Vec::new(),
         };
         let ncells = dims[0] * dims[1] * dims[2];
-        let mut start = vec![0u32; ncells + 1];
-        for b in boxes {
-            grid.for_cells(b.0, b.1, |c| start[c + 1] += 1);
-        }
-        for c in 0..ncells {
-            start[c + 1] += start[c];
-        }
-        let mut fill = start.clone();
-        let mut items = vec![0u32; start[ncells] as usize];
-        for (i, b) in boxes.iter().enumerate() {
+        // counts by atomic increments, in parallel; then each cell's items
+        // are put in order (the order of a serial fill), so that the grid
+        // does not depend on the number of threads
+        let counts: Vec<AtomicU32> = (0..ncells).map(|_| AtomicU32::new(0)).collect();
+        boxes.par_iter().with_min_len(PAR_BOXES).for_each(|b| {
             grid.for_cells(b.0, b.1, |c| {
-                items[fill[c] as usize] = i as u32;
-                fill[c] += 1;
-            });
+                counts[c].fetch_add(1, Ordering::Relaxed);
+            })
+        });
+        let mut start = vec![0u32; ncells + 1];
+        for c in 0..ncells {
+            start[c + 1] = start[c] + counts[c].load(Ordering::Relaxed);
         }
+        let fill: Vec<AtomicU32> = start[..ncells].iter().map(|&s| AtomicU32::new(s)).collect();
+        drop(counts);
+        let items: Vec<AtomicU32> = (0..start[ncells]).map(|_| AtomicU32::new(0)).collect();
+        boxes
+            .par_iter()
+            .enumerate()
+            .with_min_len(PAR_BOXES)
+            .for_each(|(i, b)| {
+                grid.for_cells(b.0, b.1, |c| {
+                    let at = fill[c].fetch_add(1, Ordering::Relaxed);
+                    items[at as usize].store(i as u32, Ordering::Relaxed);
+                })
+            });
+        drop(fill);
+        let mut items: Vec<u32> = items.into_iter().map(AtomicU32::into_inner).collect();
+        sort_cells(&mut items, &start);
         grid.start = start;
         grid.items = items;
         grid
@@ -107,5 +157,55 @@ impl CellGrid {
     pub fn cells_in(&self, lo: DVec3, hi: DVec3) -> usize {
         let (a, b) = (self.coords(lo), self.coords(hi));
         (0..3).map(|k| b[k] - a[k] + 1).product()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Boxes of a pseudo-random cloud of small triangles (xorshift).
+    fn random_boxes(n: usize, seed: u64) -> Vec<(DVec3, DVec3)> {
+        let mut x = seed;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 11) as f64 / (1u64 << 53) as f64
+        };
+        (0..n)
+            .map(|_| {
+                let c = DVec3::new(next(), next(), next()) * 40.0;
+                let r = DVec3::new(next(), next(), next()) * 0.8;
+                (c - r, c + r)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn every_cell_lists_the_boxes_over_it_in_order_whatever_the_threads() {
+        // enough boxes for several parallel tasks
+        let boxes = random_boxes(5 * PAR_BOXES, 7);
+        let build = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| CellGrid::new(&boxes))
+        };
+        let (one, three) = (build(1), build(3));
+        assert_eq!(one.start, three.start);
+        assert_eq!(one.items, three.items);
+        // the rows a serial counting sort makes: each box in every cell its
+        // box overlaps, in the order of the boxes
+        let ncells = one.dims.iter().product::<usize>();
+        let mut rows = vec![Vec::new(); ncells];
+        for (i, b) in boxes.iter().enumerate() {
+            one.for_cells(b.0, b.1, |c| rows[c].push(i as u32));
+        }
+        assert!(rows.iter().any(|r| r.len() > 1));
+        for (c, row) in rows.iter().enumerate() {
+            assert_eq!(one.cell_items(c), row.as_slice(), "cell {c}");
+        }
     }
 }

@@ -6,6 +6,7 @@
 //! distances with them.
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::bvh::Bvh;
 use super::grid::CellGrid;
@@ -66,7 +67,7 @@ impl SurfaceRef {
     pub fn with_adjacency(tris: Vec<[DVec3; 3]>, adjacent: Vec<[u32; 3]>) -> Self {
         assert_eq!(tris.len(), adjacent.len(), "one adjacency row per triangle");
         let boxes: Vec<(DVec3, DVec3)> = tris
-            .iter()
+            .par_iter()
             .map(|t| (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])))
             .collect();
         SurfaceRef {
