@@ -282,8 +282,10 @@ const ISLAND_TARGETS: f64 = 2.0;
 /// Blocks are at least this many times as wide as an operation's reach.
 /// Two blocks of one colour are a block width apart; each makes triangles
 /// within one reach of itself and sees (as obstacles) those within one
-/// reach, so more than two reaches keep them from ever meeting.
-const BLOCK_REACHES: f64 = 2.5;
+/// reach, so more than two reaches keep them from ever meeting. Five keep a
+/// small volume in a few blocks (the vertices on block borders are locked
+/// for a pass).
+const BLOCK_REACHES: f64 = 5.0;
 
 /// The diagonal of the points' bounding box (0 for none).
 fn bbox_diagonal(points: &[DVec3]) -> f64 {
@@ -428,9 +430,12 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
                 (a - b).length().max((b - c).length()).max((c - a).length())
             })
             .reduce(|| 0.0, f64::max);
-        // new triangles reach at most an edge beyond their vertices, which lie
-        // at most an edge beyond their block
-        let reach = 2.0 * longest.max(sizing.max() * isotropic_split_above());
+        // a block's triangles are those whose centroid it holds, so their
+        // vertices lie within 2/3 of a longest edge of it (a vertex is 2/3
+        // of a median from the centroid); the triangles an operation makes
+        // join those vertices, points between them and points projected
+        // from there onto the reference, which one edge covers
+        let reach = longest.max(sizing.max() * isotropic_split_above());
         let blocks = Blocks::over(&work, BLOCK_REACHES * reach, reach, 0.5 * (it % 2) as f64);
         let t = std::time::Instant::now();
         for colour in 0..COLOURS {
