@@ -356,6 +356,7 @@ impl Bvh {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geom::test_rng::random_boxes;
 
     #[test]
     fn descendants_counts_the_nodes_of_the_median_split_tree() {
@@ -369,24 +370,6 @@ mod tests {
         for m in (1..3000).chain([65_537, 100_003]) {
             assert_eq!(descendants(m), by_recursion(m), "m = {m}");
         }
-    }
-
-    /// Boxes of a pseudo-random cloud of small triangles.
-    fn random_boxes(n: usize, seed: u64, spread: f64) -> Vec<(DVec3, DVec3)> {
-        let mut x = seed;
-        let mut next = move || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as f64 / (1u64 << 53) as f64
-        };
-        (0..n)
-            .map(|_| {
-                let c = DVec3::new(next(), next(), next()) * spread;
-                let r = DVec3::new(next(), next(), next()) * 0.7;
-                (c - r, c + r)
-            })
-            .collect()
     }
 
     fn overlapping(bvh: &Bvh, lo: DVec3, hi: DVec3) -> Vec<u32> {

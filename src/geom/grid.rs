@@ -163,29 +163,12 @@ impl CellGrid {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Boxes of a pseudo-random cloud of small triangles (xorshift).
-    fn random_boxes(n: usize, seed: u64) -> Vec<(DVec3, DVec3)> {
-        let mut x = seed;
-        let mut next = move || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            (x >> 11) as f64 / (1u64 << 53) as f64
-        };
-        (0..n)
-            .map(|_| {
-                let c = DVec3::new(next(), next(), next()) * 40.0;
-                let r = DVec3::new(next(), next(), next()) * 0.8;
-                (c - r, c + r)
-            })
-            .collect()
-    }
+    use crate::geom::test_rng::random_boxes;
 
     #[test]
     fn every_cell_lists_the_boxes_over_it_in_order_whatever_the_threads() {
         // enough boxes for several parallel tasks
-        let boxes = random_boxes(5 * PAR_BOXES, 7);
+        let boxes = random_boxes(5 * PAR_BOXES, 7, 40.0);
         let build = |threads| {
             rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)

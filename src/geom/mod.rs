@@ -38,4 +38,22 @@ pub(crate) mod test_rng {
             ((self.next() * n as f64) as usize).min(n - 1)
         }
     }
+
+    /// Boxes of a pseudo-random cloud of small triangles: centres within
+    /// `spread` of the origin, half sizes up to 0.7.
+    pub(crate) fn random_boxes(
+        n: usize,
+        seed: u64,
+        spread: f64,
+    ) -> Vec<(glam::DVec3, glam::DVec3)> {
+        let mut rng = Rng(seed);
+        let mut next = move || rng.next();
+        (0..n)
+            .map(|_| {
+                let c = glam::DVec3::new(next(), next(), next()) * spread;
+                let r = glam::DVec3::new(next(), next(), next()) * 0.7;
+                (c - r, c + r)
+            })
+            .collect()
+    }
 }
