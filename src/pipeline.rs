@@ -52,7 +52,7 @@ use crate::mesh::stats::patch_stats;
 use crate::mesh::validate::{self, Report, validate};
 use crate::preprocess::{Preprocessed, preprocess, subdivision_for};
 use crate::remesh::{RemeshParams, remesh};
-use crate::volume::LabelVolume;
+use crate::volume::{Geometry, LabelVolume};
 
 /// How to run the pipeline; [`Default`] gives what `septa extract` does
 /// without flags.
@@ -232,8 +232,11 @@ pub fn run(
         triangles: extracted.triangle_count(),
         vertices: extracted.vertex_count(),
     };
+    let facts = InputFacts::new(v, resolved.outside, &pre);
 
     let mut remeshed = None;
+    let mut pre = Some(pre);
+    let mut volume = Some(volume);
     let mesh = match params {
         Some(params) => {
             let area = crate::estimate::surface_area(&extracted);
@@ -250,8 +253,14 @@ pub fn run(
             );
             timer = Timer::start(Stage::Remesh, &message, progress);
             let debug_clock = std::time::Instant::now();
-            let sizing = params.sizing(pre.refined.grid(), v.geometry());
+            let refined = &pre.as_ref().expect("not yet dropped").refined;
+            let sizing = params.sizing(refined.grid(), &facts.geometry);
             let sizing_s = debug_clock.elapsed().as_secs_f64();
+            // the voxels are not needed any more (the manifest keeps its
+            // facts): on a 512³ volume they are half a gigabyte less at the
+            // remesher's peak
+            drop(pre.take());
+            drop(volume.take());
             let out = remesh(&extracted, &sizing, &params)?;
             let remesh_s = debug_clock.elapsed().as_secs_f64();
             let q = quality(
@@ -291,11 +300,7 @@ pub fn run(
             intersections: options.intersections || remeshed.is_some(),
             // remeshed vertices leave the voxel grid by design; their distance
             // to the extraction is in the quality report instead
-            fidelity: if remeshed.is_some() {
-                None
-            } else {
-                Some((&pre.refined, 0.5))
-            },
+            fidelity: pre.as_ref().map(|pre| (&pre.refined, 0.5)),
         },
     );
     timings.push(timer.done(progress));
@@ -303,9 +308,7 @@ pub fn run(
     let manifest = manifest(ManifestParts {
         options,
         config,
-        volume: v,
-        outside: v.value(resolved.outside),
-        pre: &pre,
+        facts: &facts,
         extract_options,
         mesh: &mesh,
         extraction,
@@ -487,9 +490,7 @@ impl Budget {
 struct ManifestParts<'a> {
     options: &'a PipelineOptions,
     config: &'a Config,
-    volume: &'a LabelVolume,
-    outside: i64,
-    pre: &'a Preprocessed,
+    facts: &'a InputFacts,
     extract_options: ExtractOptions,
     mesh: &'a InterfaceMesh,
     extraction: MeshSize,
@@ -499,11 +500,42 @@ struct ManifestParts<'a> {
     selected: Option<&'a Selected>,
 }
 
+/// What the manifest reads of the volume and its preprocessing, taken
+/// before remeshing so that their voxel arrays can go.
+struct InputFacts {
+    dims: [usize; 3],
+    geometry: Geometry,
+    /// Per label id: its value and voxel count.
+    values: Vec<i64>,
+    counts: Vec<u64>,
+    outside: i64,
+    critical: (usize, usize, usize),
+    subdivision: usize,
+    refined_voxels: usize,
+    guarantee_passed: bool,
+}
+
+impl InputFacts {
+    fn new(v: &LabelVolume, outside: u16, pre: &Preprocessed) -> Self {
+        InputFacts {
+            dims: v.dims().to_array(),
+            geometry: *v.geometry(),
+            values: (0..v.label_count()).map(|i| v.value(i as u16)).collect(),
+            counts: v.voxel_counts(),
+            outside: v.value(outside),
+            critical: pre.critical.counts(),
+            subdivision: pre.refined.subdivision() as usize,
+            refined_voxels: pre.refined.refined_count(),
+            guarantee_passed: pre.guarantee.passed(),
+        }
+    }
+}
+
 fn manifest(p: ManifestParts<'_>) -> Manifest {
-    let (v, mesh, g) = (p.volume, p.mesh, p.volume.geometry());
-    let counts = v.voxel_counts();
+    let (f, mesh, g) = (p.facts, p.mesh, &p.facts.geometry);
+    let counts = &f.counts;
     let voxel_ml = g.voxel_volume_mm3() / 1000.0;
-    let (nv, ne, nf) = p.pre.critical.counts();
+    let (nv, ne, nf) = f.critical;
     let stats = patch_stats(mesh);
     let files = patch_paths(mesh);
     Manifest {
@@ -516,7 +548,7 @@ fn manifest(p: ManifestParts<'_>) -> Manifest {
                 .as_ref()
                 .map(|f| f.display().to_string()),
             config: p.config.path.as_ref().map(|f| f.display().to_string()),
-            dims: v.dims().to_array(),
+            dims: f.dims,
             spacing_mm: g.spacing(),
             origin_mm: g.origin(),
             direction: g.direction(),
@@ -530,9 +562,9 @@ fn manifest(p: ManifestParts<'_>) -> Manifest {
         parameters: ManifestParameters {
             surface: format!("{:?}", p.extract_options.surface).to_lowercase(),
             decompose: format!("{:?}", p.extract_options.decompose),
-            subdivision: p.pre.refined.subdivision() as usize,
+            subdivision: f.subdivision,
             remesh: p.remeshed.map(|r| r.params),
-            outside: p.outside,
+            outside: f.outside,
             priority: p.config.priority.iter().map(|l| l.to_string()).collect(),
             separate: p
                 .config
@@ -549,9 +581,9 @@ fn manifest(p: ManifestParts<'_>) -> Manifest {
                 into: s.target,
             }),
         },
-        labels: (0..v.label_count())
+        labels: (0..f.values.len())
             .map(|i| ManifestLabel {
-                value: v.value(i as u16),
+                value: f.values[i],
                 name: mesh.label_name(i as u16),
                 voxels: counts[i],
                 volume_ml: counts[i] as f64 * voxel_ml,
@@ -561,8 +593,8 @@ fn manifest(p: ManifestParts<'_>) -> Manifest {
             critical_vertices: nv,
             critical_edges: ne,
             constraint_faces: nf,
-            refined_voxels: p.pre.refined.refined_count(),
-            guarantee_passed: p.pre.guarantee.passed(),
+            refined_voxels: f.refined_voxels,
+            guarantee_passed: f.guarantee_passed,
         },
         vertices: mesh.vertex_count(),
         triangles: mesh.triangle_count(),

@@ -63,11 +63,25 @@ impl CellGrid {
     /// A grid over the boxes `boxes[i] = (lo, hi)`: cells of about the mean
     /// box size (at most a few per box), each listing the boxes it overlaps.
     pub fn new(boxes: &[(DVec3, DVec3)]) -> Self {
-        let (lo, hi) = boxes.iter().fold(
-            (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
-            |(lo, hi), b| (lo.min(b.0), hi.max(b.1)),
-        );
-        if boxes.is_empty() {
+        Self::from_fn(boxes.len(), |i| boxes[i])
+    }
+
+    /// [`CellGrid::new`] over the `n` boxes `box_of(i)`, computed as they
+    /// are needed (each a few times) rather than held.
+    pub fn from_fn(n: usize, box_of: impl Fn(usize) -> (DVec3, DVec3) + Sync) -> Self {
+        let (lo, hi) = (0..n)
+            .into_par_iter()
+            .with_min_len(PAR_BOXES)
+            .map(&box_of)
+            .fold(
+                || (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+                |(lo, hi), b| (lo.min(b.0), hi.max(b.1)),
+            )
+            .reduce(
+                || (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+                |a, b| (a.0.min(b.0), a.1.max(b.1)),
+            );
+        if n == 0 {
             return CellGrid {
                 lo: DVec3::ZERO,
                 cell: 1.0,
@@ -79,9 +93,20 @@ impl CellGrid {
         }
         // cells of about the mean triangle size, at most a few per triangle
         let ext = (hi - lo).max(DVec3::splat(1e-9));
-        let mean_size =
-            boxes.iter().map(|b| (b.1 - b.0).max_element()).sum::<f64>() / boxes.len() as f64;
-        let by_count = (ext.x * ext.y * ext.z / (CELLS_PER_TRIANGLE * boxes.len() as f64)).cbrt();
+        // (summed in fixed chunks, in order: the same whatever the threads)
+        let chunk_sums: Vec<f64> = (0..n.div_ceil(PAR_BOXES))
+            .into_par_iter()
+            .map(|c| {
+                (c * PAR_BOXES..((c + 1) * PAR_BOXES).min(n))
+                    .map(|i| {
+                        let b = box_of(i);
+                        (b.1 - b.0).max_element()
+                    })
+                    .sum::<f64>()
+            })
+            .collect();
+        let mean_size = chunk_sums.iter().sum::<f64>() / n as f64;
+        let by_count = (ext.x * ext.y * ext.z / (CELLS_PER_TRIANGLE * n as f64)).cbrt();
         let cell = mean_size.max(by_count).max(ext.max_element() * 1e-6);
         let dims = (ext / cell).to_array().map(|d| d.floor() as usize + 1);
         let mut grid = CellGrid {
@@ -97,11 +122,15 @@ impl CellGrid {
         // are put in order (the order of a serial fill), so that the grid
         // does not depend on the number of threads
         let counts: Vec<AtomicU32> = (0..ncells).map(|_| AtomicU32::new(0)).collect();
-        boxes.par_iter().with_min_len(PAR_BOXES).for_each(|b| {
-            grid.for_cells(b.0, b.1, |c| {
-                counts[c].fetch_add(1, Ordering::Relaxed);
-            })
-        });
+        (0..n)
+            .into_par_iter()
+            .with_min_len(PAR_BOXES)
+            .for_each(|i| {
+                let b = box_of(i);
+                grid.for_cells(b.0, b.1, |c| {
+                    counts[c].fetch_add(1, Ordering::Relaxed);
+                })
+            });
         let mut start = vec![0u32; ncells + 1];
         for c in 0..ncells {
             start[c + 1] = start[c] + counts[c].load(Ordering::Relaxed);
@@ -109,11 +138,11 @@ impl CellGrid {
         let fill: Vec<AtomicU32> = start[..ncells].iter().map(|&s| AtomicU32::new(s)).collect();
         drop(counts);
         let items: Vec<AtomicU32> = (0..start[ncells]).map(|_| AtomicU32::new(0)).collect();
-        boxes
-            .par_iter()
-            .enumerate()
+        (0..n)
+            .into_par_iter()
             .with_min_len(PAR_BOXES)
-            .for_each(|(i, b)| {
+            .for_each(|i| {
+                let b = box_of(i);
                 grid.for_cells(b.0, b.1, |c| {
                     let at = fill[c].fetch_add(1, Ordering::Relaxed);
                     items[at as usize].store(i as u32, Ordering::Relaxed);

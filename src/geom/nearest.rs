@@ -6,7 +6,6 @@
 //! distances with them.
 
 use glam::DVec3;
-use rayon::prelude::*;
 
 use super::bvh::Bvh;
 use super::grid::CellGrid;
@@ -43,7 +42,8 @@ impl Reached {
 /// local walks and a cell grid for exact queries.
 pub struct SurfaceRef {
     tris: Vec<[DVec3; 3]>,
-    /// Neighbour across edge k (corners k, k + 1), or [`NO_TRIANGLE`].
+    /// Neighbour across edge k (corners k, k + 1), or [`NO_TRIANGLE`];
+    /// empty for a reference without adjacency.
     adjacent: Vec<[u32; 3]>,
     grid: CellGrid,
 }
@@ -58,23 +58,40 @@ fn box_dist2(t: &[DVec3; 3], p: DVec3) -> f64 {
 impl SurfaceRef {
     /// A reference without adjacency: every query goes to the BVH.
     pub fn new(tris: Vec<[DVec3; 3]>) -> Self {
-        let adjacent = vec![[NO_TRIANGLE; 3]; tris.len()];
-        Self::with_adjacency(tris, adjacent)
+        SurfaceRef {
+            grid: Self::grid_over(&tris),
+            tris,
+            adjacent: Vec::new(),
+        }
     }
 
     /// A reference whose triangle `t` has neighbour `adjacent[t][k]` across
     /// its edge k (corners k, k + 1).
     pub fn with_adjacency(tris: Vec<[DVec3; 3]>, adjacent: Vec<[u32; 3]>) -> Self {
         assert_eq!(tris.len(), adjacent.len(), "one adjacency row per triangle");
-        let boxes: Vec<(DVec3, DVec3)> = tris
-            .par_iter()
-            .map(|t| (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])))
-            .collect();
         SurfaceRef {
-            grid: CellGrid::new(&boxes),
+            grid: Self::grid_over(&tris),
             tris,
             adjacent,
         }
+    }
+
+    /// A cell grid over the triangles' boxes (computed as it bins them,
+    /// rather than held: 48 bytes a triangle at the peak otherwise).
+    fn grid_over(tris: &[[DVec3; 3]]) -> CellGrid {
+        CellGrid::from_fn(tris.len(), |i| {
+            let t = &tris[i];
+            (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]))
+        })
+    }
+
+    /// The neighbours of triangle `t` across its edges.
+    #[inline]
+    fn across(&self, t: u32) -> [u32; 3] {
+        self.adjacent
+            .get(t as usize)
+            .copied()
+            .unwrap_or([NO_TRIANGLE; 3])
     }
 
     #[inline]
@@ -112,7 +129,7 @@ impl SurfaceRef {
             ];
             let mut next = NO_TRIANGLE;
             let mut most = 0.0;
-            for (&b, &across) in beyond.iter().zip(&self.adjacent[cur as usize]) {
+            for (&b, &across) in beyond.iter().zip(&self.across(cur)) {
                 if b < most && across != NO_TRIANGLE && !recent.contains(&across) {
                     (next, most) = (across, b);
                 }
@@ -166,10 +183,7 @@ impl SurfaceRef {
             if reached.normal.dot(n) > 0.0 && reached.dist2(self, centroid) <= eps2 {
                 return Some(t);
             }
-            if let Some(&i) = self.adjacent[t as usize]
-                .iter()
-                .find(|&&i| i != NO_TRIANGLE && ok(i))
-            {
+            if let Some(&i) = self.across(t).iter().find(|&&i| i != NO_TRIANGLE && ok(i)) {
                 return Some(i);
             }
         }
@@ -211,7 +225,7 @@ impl SurfaceRef {
             if !reached.plane_dist2.is_nan() {
                 return (t, reached.plane_dist2);
             }
-            self.adjacent[t as usize]
+            self.across(t)
                 .iter()
                 .copied()
                 .filter(|&i| i != NO_TRIANGLE)
