@@ -370,12 +370,16 @@ fn independent_of_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap();
-        pool.install(|| remeshed(&vol, &r, 2.0).1.mesh)
+        pool.install(|| remeshed(&vol, &r, 2.0).1)
     };
     let (a, b) = (run(1), run(3));
-    assert_eq!(a.triangles, b.triangles);
-    assert_eq!(a.positions, b.positions);
-    assert_eq!(a.junctions.len(), b.junctions.len());
+    assert_eq!(a.mesh.triangles, b.mesh.triangles);
+    assert_eq!(a.mesh.positions, b.mesh.positions);
+    assert_eq!(a.mesh.junctions.len(), b.mesh.junctions.len());
+    // the shares reported are sums over the triangles: bit for bit too
+    assert_eq!(a.kept_share.to_bits(), b.kept_share.to_bits());
+    assert_eq!(a.island_share.to_bits(), b.island_share.to_bits());
+    assert_eq!(a.kept_vertices, b.kept_vertices);
 }
 
 #[test]

@@ -482,16 +482,27 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
         t.iter()
             .all(|&v| work.kind[v as usize] == VertexKind::Island)
     };
-    let (total, kept, islands) = work
+    // (summed in fixed chunks, in order: the same whatever the threads)
+    const CHUNK: usize = 1 << 14;
+    let parts: Vec<(f64, f64, f64)> = work
         .tris
-        .par_iter()
-        .zip(&work.kept)
-        .map(|(t, &k)| {
-            let a = area(t);
-            let isl = k && island(t);
-            (a, if k { a } else { 0.0 }, if isl { a } else { 0.0 })
+        .par_chunks(CHUNK)
+        .zip(work.kept.par_chunks(CHUNK))
+        .map(|(ts, ks)| {
+            ts.iter().zip(ks).fold((0.0, 0.0, 0.0), |s, (t, &k)| {
+                let a = area(t);
+                let isl = k && island(t);
+                (
+                    s.0 + a,
+                    s.1 + if k { a } else { 0.0 },
+                    s.2 + if isl { a } else { 0.0 },
+                )
+            })
         })
-        .reduce(|| (0.0, 0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1, x.2 + y.2));
+        .collect();
+    let (total, kept, islands) = parts
+        .iter()
+        .fold((0.0, 0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1, x.2 + y.2));
     let share = |x: f64| if total > 0.0 { x / total } else { 0.0 };
     // per vertex: 1 while every triangle seen at it was kept, 2 once one was not
     let mut state = vec![0u8; work.pos.len()];
