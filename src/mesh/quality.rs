@@ -816,63 +816,47 @@ fn distance_stats(
                 )
             })
     };
-    // Vertices, remembering the nearest triangle as a hint for the rest.
-    let mut hints = vec![u32::MAX; nv];
-    let vparts: Vec<Part> = hints
-        .par_chunks_mut(CHUNK)
-        .enumerate()
-        .map(|(ci, hs)| {
+    // The samples (vertices, triangle centroids, edge midpoints) in
+    // Z-order of voxel-sized cells, so that consecutive queries read the
+    // same reference triangles (in mesh order they jumped across the
+    // reference, a cache miss per triangle read); each query starts from
+    // the triangle the one before it found.
+    let mut samples: Vec<DVec3> = Vec::with_capacity(nv + mesh.triangles.len() + edges.len());
+    samples.extend(p.iter().copied());
+    samples.extend(
+        mesh.triangles
+            .iter()
+            .filter(|t| t.iter().all(|&v| (v as usize) < nv))
+            .map(|t| (p[t[0] as usize] + p[t[1] as usize] + p[t[2] as usize]) / 3.0),
+    );
+    samples.extend(
+        edges
+            .iter()
+            .map(|&[a, b]| 0.5 * (p[a as usize] + p[b as usize])),
+    );
+    let (lo, inv) = z_order_frame(&samples, voxel_mm);
+    let mut samples: Vec<(u64, DVec3)> = samples
+        .into_par_iter()
+        .map(|x| (z_order_key(x, lo, inv), x))
+        .collect();
+    // (ties in the key keep their order: the result does not depend on the
+    // thread count)
+    samples.par_sort_by_key(|s| s.0);
+    let parts: Vec<Part> = samples
+        .par_chunks(CHUNK)
+        .map(|chunk| {
             let mut part: Part = (-1.0, DVec3::ZERO, 0.0, 0);
             let mut hint = u32::MAX;
-            for (k, h) in hs.iter_mut().enumerate() {
-                let x = p[ci * CHUNK + k];
+            for &(_, x) in chunk {
                 if let Some(n) = bvh.nearest(x, hint) {
                     hint = n.triangle;
-                    *h = n.triangle;
                     add(&mut part, x, n.distance_squared);
                 }
             }
             part
         })
         .collect();
-    let hints = &hints;
-    let hint_of = |v: u32| hints.get(v as usize).copied().unwrap_or(u32::MAX);
-    let tparts: Vec<Part> = mesh
-        .triangles
-        .par_chunks(CHUNK)
-        .map(|ts| {
-            let mut part: Part = (-1.0, DVec3::ZERO, 0.0, 0);
-            for t in ts {
-                if t.iter().any(|&v| v as usize >= nv) {
-                    continue;
-                }
-                let [a, b, c] = t.map(|v| p[v as usize]);
-                let x = (a + b + c) / 3.0;
-                if let Some(n) = bvh.nearest(x, hint_of(t[0])) {
-                    add(&mut part, x, n.distance_squared);
-                }
-            }
-            part
-        })
-        .collect();
-    let eparts: Vec<Part> = edges
-        .par_chunks(CHUNK)
-        .map(|es| {
-            let mut part: Part = (-1.0, DVec3::ZERO, 0.0, 0);
-            for &[a, b] in es {
-                let x = 0.5 * (p[a as usize] + p[b as usize]);
-                if let Some(n) = bvh.nearest(x, hint_of(a)) {
-                    add(&mut part, x, n.distance_squared);
-                }
-            }
-            part
-        })
-        .collect();
-    let all = combine(
-        [combine(vparts), combine(tparts), combine(eparts)]
-            .into_iter()
-            .collect(),
-    );
+    let all = combine(parts);
     let (max2, at, sum, count) = all;
     let h = max2.max(0.0).sqrt();
     let mean = if count > 0 { sum / count as f64 } else { 0.0 };
@@ -885,6 +869,38 @@ fn distance_stats(
         voxel_mm,
         hausdorff_at: at.to_array(),
     }
+}
+
+/// The corner and the inverse cell size of the Z-order over `points`, cells
+/// of `cell` mm (grown until 21 bits per axis hold the points' box).
+fn z_order_frame(points: &[DVec3], cell: f64) -> (DVec3, f64) {
+    let (lo, hi) = points.iter().fold(
+        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+        |(lo, hi), &x| (lo.min(x), hi.max(x)),
+    );
+    if points.is_empty() || !(lo.is_finite() && hi.is_finite()) {
+        return (DVec3::ZERO, 1.0);
+    }
+    let ext = (hi - lo).max_element();
+    let cell = cell
+        .max(ext / f64::from((1u32 << 21) - 1))
+        .max(f64::MIN_POSITIVE);
+    (lo, 1.0 / cell)
+}
+
+/// The Z-order (Morton) key of `x`'s cell: 21 bits per axis, interleaved.
+fn z_order_key(x: DVec3, lo: DVec3, inv: f64) -> u64 {
+    let spread = |v: f64| -> u64 {
+        // (NaN and points outside the frame go to its border cells)
+        let mut b = (((v * inv).max(0.0)) as u64).min((1 << 21) - 1);
+        b = (b | (b << 32)) & 0x001f_0000_0000_ffff;
+        b = (b | (b << 16)) & 0x001f_0000_ff00_00ff;
+        b = (b | (b << 8)) & 0x100f_00f0_0f00_f00f;
+        b = (b | (b << 4)) & 0x10c3_0c30_c30c_30c3;
+        (b | (b << 2)) & 0x1249_2492_4924_9249
+    };
+    let d = x - lo;
+    spread(d.x) | (spread(d.y) << 1) | (spread(d.z) << 2)
 }
 
 fn add(part: &mut (f64, DVec3, f64, usize), x: DVec3, d2: f64) {
@@ -922,4 +938,38 @@ impl NearestGrid {
 struct Nearest {
     triangle: u32,
     distance_squared: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn z_order_keys_interleave_the_cells_coordinates() {
+        let points = [DVec3::ZERO, DVec3::new(7.5, 3.2, 9.9)];
+        let (lo, inv) = z_order_frame(&points, 1.0);
+        let key = |x: f64, y: f64, z: f64| z_order_key(DVec3::new(x, y, z), lo, inv);
+        // one bit per axis, x lowest
+        assert_eq!(key(0.5, 0.5, 0.5), 0);
+        assert_eq!(key(1.5, 0.5, 0.5), 0b001);
+        assert_eq!(key(0.5, 1.5, 0.5), 0b010);
+        assert_eq!(key(0.5, 0.5, 1.5), 0b100);
+        assert_eq!(key(3.5, 0.5, 0.5), 0b001_001);
+        assert_eq!(key(7.5, 3.2, 9.9), {
+            // x 7 = 111, y 3 = 011, z 9 = 1001
+            let (x, y, z) = (7u64, 3u64, 9u64);
+            (0..4).fold(0, |k, b| {
+                k | ((x >> b) & 1) << (3 * b)
+                    | ((y >> b) & 1) << (3 * b + 1)
+                    | ((z >> b) & 1) << (3 * b + 2)
+            })
+        });
+        // points off the frame (and NaN) go to its border cells
+        assert_eq!(key(-5.0, 0.5, f64::NAN), 0);
+        // a huge extent grows the cells so that 21 bits per axis hold it
+        let far = [DVec3::ZERO, DVec3::splat(1e9)];
+        let (lo, inv) = z_order_frame(&far, 1.0);
+        assert!(z_order_key(far[1], lo, inv) < 1 << 63);
+        assert!(z_order_key(far[1], lo, inv) > z_order_key(DVec3::splat(5e8), lo, inv));
+    }
 }
