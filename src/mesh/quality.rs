@@ -820,34 +820,40 @@ fn distance_stats(
     // Z-order of voxel-sized cells, so that consecutive queries read the
     // same reference triangles (in mesh order they jumped across the
     // reference, a cache miss per triangle read); each query starts from
-    // the triangle the one before it found.
-    let mut samples: Vec<DVec3> = Vec::with_capacity(nv + mesh.triangles.len() + edges.len());
-    samples.extend(p.iter().copied());
-    samples.extend(
-        mesh.triangles
-            .iter()
-            .filter(|t| t.iter().all(|&v| (v as usize) < nv))
-            .map(|t| (p[t[0] as usize] + p[t[1] as usize] + p[t[2] as usize]) / 3.0),
-    );
-    samples.extend(
-        edges
-            .iter()
-            .map(|&[a, b]| 0.5 * (p[a as usize] + p[b as usize])),
-    );
-    let (lo, inv) = z_order_frame(&samples, voxel_mm);
-    let mut samples: Vec<(u64, DVec3)> = samples
-        .into_par_iter()
-        .map(|x| (z_order_key(x, lo, inv), x))
+    // the triangle the one before it found. Samples are numbered vertices
+    // first, then triangles, then edges; all lie in the vertices' box.
+    let tris: Vec<[u32; 3]> = mesh
+        .triangles
+        .iter()
+        .copied()
+        .filter(|t| t.iter().all(|&v| (v as usize) < nv))
         .collect();
-    // (ties in the key keep their order: the result does not depend on the
-    // thread count)
-    samples.par_sort_by_key(|s| s.0);
-    let parts: Vec<Part> = samples
+    let (nt, ne) = (tris.len(), edges.len());
+    let sample = |i: usize| -> DVec3 {
+        if i < nv {
+            p[i]
+        } else if i < nv + nt {
+            let t = tris[i - nv];
+            (p[t[0] as usize] + p[t[1] as usize] + p[t[2] as usize]) / 3.0
+        } else {
+            let [a, b] = edges[i - nv - nt];
+            0.5 * (p[a as usize] + p[b as usize])
+        }
+    };
+    let (lo, inv) = z_order_frame(p, voxel_mm);
+    let mut order: Vec<(u64, u32)> = (0..nv + nt + ne)
+        .into_par_iter()
+        .map(|i| (z_order_key(sample(i), lo, inv), i as u32))
+        .collect();
+    // (keys with their sample's number are distinct: one order whatever the threads)
+    order.par_sort_unstable();
+    let parts: Vec<Part> = order
         .par_chunks(CHUNK)
         .map(|chunk| {
             let mut part: Part = (-1.0, DVec3::ZERO, 0.0, 0);
             let mut hint = u32::MAX;
-            for &(_, x) in chunk {
+            for &(_, i) in chunk {
+                let x = sample(i as usize);
                 if let Some(n) = bvh.nearest(x, hint) {
                     hint = n.triangle;
                     add(&mut part, x, n.distance_squared);
