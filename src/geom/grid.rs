@@ -122,15 +122,9 @@ impl CellGrid {
         // are put in order (the order of a serial fill), so that the grid
         // does not depend on the number of threads
         let counts: Vec<AtomicU32> = (0..ncells).map(|_| AtomicU32::new(0)).collect();
-        (0..n)
-            .into_par_iter()
-            .with_min_len(PAR_BOXES)
-            .for_each(|i| {
-                let b = box_of(i);
-                grid.for_cells(b.0, b.1, |c| {
-                    counts[c].fetch_add(1, Ordering::Relaxed);
-                })
-            });
+        grid.par_for_cells_of(n, &box_of, |_, c| {
+            counts[c].fetch_add(1, Ordering::Relaxed);
+        });
         let mut start = vec![0u32; ncells + 1];
         for c in 0..ncells {
             start[c + 1] = start[c] + counts[c].load(Ordering::Relaxed);
@@ -138,22 +132,33 @@ impl CellGrid {
         let fill: Vec<AtomicU32> = start[..ncells].iter().map(|&s| AtomicU32::new(s)).collect();
         drop(counts);
         let items: Vec<AtomicU32> = (0..start[ncells]).map(|_| AtomicU32::new(0)).collect();
-        (0..n)
-            .into_par_iter()
-            .with_min_len(PAR_BOXES)
-            .for_each(|i| {
-                let b = box_of(i);
-                grid.for_cells(b.0, b.1, |c| {
-                    let at = fill[c].fetch_add(1, Ordering::Relaxed);
-                    items[at as usize].store(i as u32, Ordering::Relaxed);
-                })
-            });
+        grid.par_for_cells_of(n, &box_of, |i, c| {
+            let at = fill[c].fetch_add(1, Ordering::Relaxed);
+            items[at as usize].store(i as u32, Ordering::Relaxed);
+        });
         drop(fill);
         let mut items: Vec<u32> = items.into_iter().map(AtomicU32::into_inner).collect();
         sort_cells(&mut items, &start);
         grid.start = start;
         grid.items = items;
         grid
+    }
+
+    /// Calls `f(i, c)`, in parallel, for every box `i < n` and every cell
+    /// `c` its box `box_of(i)` overlaps.
+    fn par_for_cells_of(
+        &self,
+        n: usize,
+        box_of: &(impl Fn(usize) -> (DVec3, DVec3) + Sync),
+        f: impl Fn(usize, usize) + Sync,
+    ) {
+        (0..n)
+            .into_par_iter()
+            .with_min_len(PAR_BOXES)
+            .for_each(|i| {
+                let b = box_of(i);
+                self.for_cells(b.0, b.1, |c| f(i, c));
+            });
     }
 
     /// Cell coordinates of `p`, clamped to the grid.
