@@ -299,7 +299,8 @@ pub fn run(
         &validate::Options {
             intersections: options.intersections || remeshed.is_some(),
             // remeshed vertices leave the voxel grid by design; their distance
-            // to the extraction is in the quality report instead
+            // to the extraction is in the quality report instead (and the
+            // voxels were dropped before remeshing: `pre` is gone exactly then)
             fidelity: pre.as_ref().map(|pre| (&pre.refined, 0.5)),
         },
     );
