@@ -83,19 +83,45 @@ impl Tri {
     }
 }
 
+/// Vertices whose whole fan in one patch's mesh is known to be simple (see
+/// [`is_simple_fan`]) with the triangles being tested in it: every
+/// triangle of that fan meets every other only along the edges they share.
+/// A registered face of `patch` holding one of `apexes` is such a fan
+/// member, and so is every triangle tested (each holds every apex), so the
+/// guard need not test the two against each other. Mesh neighbours are
+/// most of the pairs a query meets; one look at a fan replaces their tests.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct SimpleFans {
+    pub patch: u32,
+    pub apexes: [Option<Key>; 3],
+}
+
+impl SimpleFans {
+    /// Whether triangle `k` (by its vertex keys), a face of `patch`, lies in
+    /// one of the fans.
+    #[inline]
+    fn hold(&self, patch: u32, k: &[Key; 3]) -> bool {
+        patch == self.patch && k.iter().any(|&x| self.apexes.contains(&Some(x)))
+    }
+}
+
+/// Most triangles a fan may have to be shown simple (more are rare; they
+/// are then tested pair by pair).
+pub(super) const FAN_MAX: usize = 24;
+
 /// Whether `made` is a fan that cannot overlap itself, shown without testing
 /// its triangles pairwise: all share one apex (the first corner of each, as
 /// the remesher makes them) and form one chain around it (each triangle's
 /// far corner is the next one's near corner: one start, or none for a
-/// closed fan); seen along the mean of their normals every one keeps its
-/// orientation (by a margin), and the angles they span at the apex add up
-/// to less than one turn (open) or to one turn (closed). Their projections
-/// are then consecutive sectors around the apex that meet only along their
-/// sides, so the triangles meet only along their shared edges. `false` says
-/// only "not shown this way".
-fn is_simple_fan(made: &[Tri]) -> bool {
-    if made.len() < 2 {
+/// closed fan), and the chain's ring is simple around the apex
+/// ([`is_simple_ring`]). `false` says only "not shown this way".
+pub(super) fn is_simple_fan(made: &[Tri]) -> bool {
+    let n = made.len();
+    if n < 2 {
         return true;
+    }
+    if n > FAN_MAX {
+        return false;
     }
     let apex = made[0].k[0];
     if made
@@ -106,7 +132,7 @@ fn is_simple_fan(made: &[Tri]) -> bool {
     }
     // one chain: near corners distinct, far corners distinct, at most one
     // near corner that is no far corner
-    let mut starts = 0;
+    let mut start = None;
     for (i, t) in made.iter().enumerate() {
         if made[i + 1..]
             .iter()
@@ -114,35 +140,104 @@ fn is_simple_fan(made: &[Tri]) -> bool {
         {
             return false;
         }
-        starts += usize::from(!made.iter().any(|u| u.k[2] == t.k[1]));
+        if !made.iter().any(|u| u.k[2] == t.k[1]) {
+            if start.is_some() {
+                return false;
+            }
+            start = Some(i);
+        }
     }
-    if starts > 1 {
-        return false;
+    // the ring in chain order
+    let closed = start.is_none();
+    let first = start.unwrap_or(0);
+    let mut ring = [DVec3::ZERO; FAN_MAX + 1];
+    let mut at = first;
+    ring[0] = made[at].p[1];
+    for i in 1..=n {
+        ring[i] = made[at].p[2];
+        if i == n {
+            break;
+        }
+        let far = made[at].k[2];
+        match made.iter().position(|u| u.k[1] == far) {
+            Some(next) if next != first => at = next,
+            // the chain ends or closes before it holds every triangle
+            _ => return false,
+        }
     }
-    let normals = made
-        .iter()
-        .map(|t| (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]));
-    let axis = normals.clone().sum::<DVec3>().normalize_or_zero();
+    is_simple_ring(made[0].p[0], &ring[..n + usize::from(!closed)], closed)
+}
+
+/// Whether the triangles (`apex`, `ring[i]`, `ring[i + 1]`) (and
+/// (`apex`, last, first) when `closed`) form a simple fan: seen along the
+/// sum of their normals, every one keeps its orientation by a margin (its
+/// normal within 84° of that axis), and going round the ring from its first
+/// point, the directions from the apex turn less than once (open) or
+/// exactly once (closed). Their projections are then consecutive sectors
+/// around the apex that meet only along their sides, so the triangles meet
+/// only along their shared edges. `false` says only "not shown this way".
+///
+/// The turn is counted without angles: each sector turns counter-clockwise
+/// by less than a half turn (it keeps its orientation), so the directions
+/// turn less than once exactly when, seen from the first direction, they
+/// run through the upper half plane, at most past the opposite direction,
+/// then through the lower one, and never back (with a margin at the first
+/// direction itself).
+pub(super) fn is_simple_ring(apex: DVec3, ring: &[DVec3], closed: bool) -> bool {
+    let sectors = if closed {
+        ring.len()
+    } else {
+        ring.len().saturating_sub(1)
+    };
+    if sectors < 2 {
+        // no two triangles
+        return true;
+    }
+    let d = |i: usize| ring[i % ring.len()] - apex;
+    let mut axis = DVec3::ZERO;
+    for i in 0..sectors {
+        axis += d(i).cross(d(i + 1));
+    }
+    let axis = axis.normalize_or_zero();
     if axis == DVec3::ZERO {
         return false;
     }
-    // every triangle faces along the axis by at least cos 84°
-    let mut turn = 0.0;
-    for (t, n) in made.iter().zip(normals) {
-        if !(n.dot(axis) > 0.1 * n.length()) {
+    // every sector faces along the axis by at least cos 84° (compared
+    // squared: no roots)
+    for i in 0..sectors {
+        let n = d(i).cross(d(i + 1));
+        let along = n.dot(axis);
+        if !(along > 0.0 && along * along > 0.01 * n.length_squared()) {
             return false;
         }
-        let (a, b) = (t.p[1] - t.p[0], t.p[2] - t.p[0]);
-        let (a, b) = (a - axis * a.dot(axis), b - axis * b.dot(axis));
-        turn += a.cross(b).dot(axis).atan2(a.dot(b));
     }
-    let full = std::f64::consts::TAU;
-    // (rounding moves the sum by far less than this margin)
-    if starts == 1 {
-        turn < full - 1e-6
-    } else {
-        (turn - full).abs() < 1e-6
+    // the half planes seen from the first direction, in order
+    let d0 = d(0);
+    let (d0a, d02) = (d0.dot(axis), d0.length_squared());
+    const UPPER: u8 = 0;
+    const OPPOSITE: u8 = 1;
+    const LOWER: u8 = 2;
+    let mut phase = UPPER;
+    for i in 1..ring.len() {
+        let di = d(i);
+        let y = axis.dot(d0.cross(di));
+        let x = d0.dot(di) - d0a * di.dot(axis);
+        let side = if y * y > 1e-18 * d02 * di.length_squared() {
+            if y > 0.0 { UPPER } else { LOWER }
+        } else if x < 0.0 {
+            OPPOSITE
+        } else {
+            // along the first direction again: a full turn, or nearly
+            return false;
+        };
+        // (one opposite direction at most, and never back up)
+        if side < phase || side == OPPOSITE && phase == OPPOSITE {
+            return false;
+        }
+        phase = side;
     }
+    // a closed ring comes back to the first direction from below
+    !closed || phase == LOWER
 }
 
 /// Most cells the finest grid may have.
@@ -469,8 +564,15 @@ impl Guard {
 
     /// Whether the triangles `made` cross neither each other nor anything
     /// registered except the faces `replaced` (patch, face), and lie within
-    /// the trusted box.
-    pub(super) fn clear(&mut self, made: &[Tri], replaced: &[(u32, u32)]) -> bool {
+    /// the trusted box. Faces in `fans` are known not to cross `made`, nor
+    /// do the triangles of `made` cross each other when `fans` is given
+    /// (they lie in those fans).
+    pub(super) fn clear(
+        &mut self,
+        made: &[Tri],
+        replaced: &[(u32, u32)],
+        fans: Option<SimpleFans>,
+    ) -> bool {
         if made.is_empty() {
             return true;
         }
@@ -486,7 +588,7 @@ impl Guard {
         {
             return false;
         }
-        if !is_simple_fan(made) {
+        if fans.is_none() && !is_simple_fan(made) {
             for (i, s) in made.iter().enumerate() {
                 for t in &made[i + 1..] {
                     if triangles_cross(&s.p, &s.k, &t.p, &t.k) {
@@ -507,7 +609,7 @@ impl Guard {
         let mut made_boxes = std::mem::take(&mut self.made_boxes);
         made_boxes.clear();
         made_boxes.extend(made.iter().map(|t| t.box32()));
-        let crossed = self.scan(made, &made_boxes, lo, hi, &skipped);
+        let crossed = self.scan(made, &made_boxes, lo, hi, &skipped, fans);
         self.made_boxes = made_boxes;
         self.skipped = skipped;
         crossed.is_none()
@@ -516,8 +618,12 @@ impl Guard {
     /// What the one triangle `t` would cross among the registered entries:
     /// `None` if nothing (and it lies within the trusted box); `Some(face)`
     /// for the (patch, face) it crosses, `Some(None)` for an obstacle or
-    /// for leaving the trusted box.
-    pub(super) fn crossing(&mut self, t: &Tri) -> Option<Option<(u32, u32)>> {
+    /// for leaving the trusted box. Faces in `fans` are known not to cross `t`.
+    pub(super) fn crossing(
+        &mut self,
+        t: &Tri,
+        fans: Option<SimpleFans>,
+    ) -> Option<Option<(u32, u32)>> {
         let (lo, hi) = t.bounds();
         if !(lo.is_finite() && hi.is_finite())
             || lo.cmplt(self.trusted.0).any()
@@ -525,13 +631,13 @@ impl Guard {
         {
             return Some(None);
         }
-        let e = self.scan(std::slice::from_ref(t), &[t.box32()], lo, hi, &[])?;
+        let e = self.scan(std::slice::from_ref(t), &[t.box32()], lo, hi, &[], fans)?;
         let (p, f) = self.owner[e as usize];
         Some((p != NONE).then_some((p, f)))
     }
 
-    /// The cells near [lo, hi]: the first entry, not one of `skipped`, that
-    /// crosses a triangle of `made`, if any.
+    /// The cells near [lo, hi]: the first entry, not one of `skipped` nor
+    /// in `fans`, that crosses a triangle of `made`, if any.
     fn scan(
         &self,
         made: &[Tri],
@@ -539,6 +645,7 @@ impl Guard {
         lo: DVec3,
         hi: DVec3,
         skipped: &[u32],
+        fans: Option<SimpleFans>,
     ) -> Option<u32> {
         let query_box = Box32::outward(lo, hi);
         for l in &self.levels {
@@ -559,6 +666,9 @@ impl Guard {
                                 continue;
                             }
                             let t = &self.tris[item.e as usize];
+                            if fans.is_some_and(|f| f.hold(self.owner[item.e as usize].0, &t.k)) {
+                                continue;
+                            }
                             let tb = item.b;
                             if made.iter().zip(made_boxes).any(|(s, sb)| {
                                 sb.overlaps(&tb) && triangles_cross(&s.p, &s.k, &t.p, &t.k)
@@ -571,5 +681,113 @@ impl Guard {
             }
         }
         None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::test_rng::Rng;
+
+    /// A ring around the origin at the given angles (radians), radii and heights.
+    fn ring_at(angles: &[f64], radii: &[f64], heights: &[f64]) -> Vec<DVec3> {
+        angles
+            .iter()
+            .zip(radii)
+            .zip(heights)
+            .map(|((a, r), z)| DVec3::new(r * a.cos(), r * a.sin(), *z))
+            .collect()
+    }
+
+    /// The fan's triangles as the guard tests them: apex key 0, ring keys 1...
+    fn fan_tris(apex: DVec3, ring: &[DVec3], closed: bool) -> Vec<Tri> {
+        let sectors = if closed { ring.len() } else { ring.len() - 1 };
+        (0..sectors)
+            .map(|i| {
+                let j = (i + 1) % ring.len();
+                Tri {
+                    p: [apex, ring[i], ring[j]],
+                    k: [0, i as Key + 1, j as Key + 1],
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn rings_that_turn_once_are_simple_and_twice_are_not() {
+        let o = DVec3::ZERO;
+        let turn = std::f64::consts::TAU;
+        let flat = |n: usize, span: f64, closed: bool| {
+            let steps = if closed { n } else { n - 1 };
+            let a: Vec<f64> = (0..n).map(|i| span * i as f64 / steps as f64).collect();
+            ring_at(&a, &vec![1.0; n], &vec![0.0; n])
+        };
+        assert!(is_simple_ring(o, &flat(6, turn, true), true));
+        assert!(is_simple_ring(o, &flat(7, 0.97 * turn, false), false));
+        // twice round, and open rings that come back over their start
+        assert!(!is_simple_ring(o, &flat(12, 2.0 * turn, true), true));
+        assert!(!is_simple_ring(o, &flat(9, 1.03 * turn, false), false));
+        assert!(!is_simple_ring(o, &flat(9, turn, false), false));
+        // a sector turned over
+        let mut folded = flat(6, turn, true);
+        folded.swap(2, 3);
+        assert!(!is_simple_ring(o, &folded, true));
+        // the same fans as the remesher hands them over, in any order
+        for (ring, closed, simple) in [
+            (flat(6, turn, true), true, true),
+            (flat(7, 0.97 * turn, false), false, true),
+            (flat(12, 2.0 * turn, true), true, false),
+            (folded, true, false),
+        ] {
+            let mut tris = fan_tris(o, &ring, closed);
+            tris.rotate_left(2);
+            tris.swap(0, 1);
+            assert_eq!(is_simple_fan(&tris), simple);
+        }
+    }
+
+    /// Whatever the ring, a fan called simple has no two triangles that
+    /// cross (beyond their shared apex and edges).
+    #[test]
+    fn simple_fans_do_not_cross() {
+        let mut rng = Rng(0x5eed_fa45);
+        let (mut simple, mut not) = (0, 0);
+        for case in 0..20_000 {
+            let n = 3 + rng.below(9);
+            let closed = case % 2 == 0;
+            // angles mostly increasing, sometimes past one turn or back
+            let mut a = 0.0;
+            let mut angles = Vec::with_capacity(n);
+            let step = std::f64::consts::TAU / n as f64 * (0.6 + 0.8 * rng.next());
+            for _ in 0..n {
+                angles.push(a);
+                a += step * (rng.next() * 2.0 - 0.3);
+            }
+            let radii: Vec<f64> = (0..n).map(|_| 0.2 + rng.next()).collect();
+            let bumps = [0.0, 0.3, 1.5, 6.0][rng.below(4)];
+            let heights: Vec<f64> = (0..n).map(|_| bumps * (rng.next() - 0.5)).collect();
+            let ring = ring_at(&angles, &radii, &heights);
+            let apex = DVec3::new(0.0, 0.0, bumps * (rng.next() - 0.5));
+            if !is_simple_ring(apex, &ring, closed) {
+                not += 1;
+                continue;
+            }
+            simple += 1;
+            let tris = fan_tris(apex, &ring, closed);
+            assert!(
+                is_simple_fan(&tris),
+                "case {case}: the fan of a simple ring"
+            );
+            for (i, s) in tris.iter().enumerate() {
+                for t in &tris[i + 1..] {
+                    assert!(
+                        !triangles_cross(&s.p, &s.k, &t.p, &t.k),
+                        "case {case}: a simple fan's triangles cross"
+                    );
+                }
+            }
+        }
+        // both answers are common, so the test shows something
+        assert!(simple > 2_000 && not > 2_000, "{simple} simple, {not} not");
     }
 }

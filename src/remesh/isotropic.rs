@@ -27,7 +27,9 @@
 use glam::DVec3;
 use hashbrown::HashMap;
 
-use super::guard::{Guard, Key, Tri, vertex_key};
+use super::guard::{
+    FAN_MAX, Guard, Key, SimpleFans, Tri, is_simple_fan, is_simple_ring, vertex_key,
+};
 use super::halfedge::{HalfedgeMesh, NONE};
 use super::network::VertexKind;
 use super::sizing::Sizing;
@@ -144,6 +146,8 @@ pub(super) struct Remesher<'r> {
     pub(super) guard: Guard,
     made: Vec<Tri>,
     replaced: Vec<(u32, u32)>,
+    /// Scratch: a vertex's fan, tested for [`is_simple_fan`].
+    fan: Vec<Tri>,
     /// Per closed component: the signed volume it may still lose here (see
     /// [`Region::volumes`]).
     volumes: Vec<f64>,
@@ -230,6 +234,7 @@ impl<'r> Remesher<'r> {
             guard,
             made: Vec::new(),
             replaced: Vec::new(),
+            fan: Vec::new(),
             volumes,
             stats: [0; 10],
             offset_chords: false,
@@ -269,7 +274,7 @@ impl<'r> Remesher<'r> {
 
     /// Whether the triangles in `self.made` may replace those in
     /// `self.replaced` (the guard).
-    fn guard_clear(&mut self) -> bool {
+    fn guard_clear(&mut self, fans: Option<SimpleFans>) -> bool {
         self.stats[0] += 1;
         self.stats[1] += self.made.len() as u64;
         let volume = self.volume_change();
@@ -283,7 +288,7 @@ impl<'r> Remesher<'r> {
             }
         }
         let t = self.time_guard.then(std::time::Instant::now);
-        let ok = self.guard.clear(&self.made, &self.replaced);
+        let ok = self.guard.clear(&self.made, &self.replaced, fans);
         if let Some(t) = t {
             self.stats[2] += t.elapsed().as_nanos() as u64;
         }
@@ -404,9 +409,22 @@ impl<'r> Remesher<'r> {
         if at != m.pos[v1 as usize] {
             Self::faces_around(m, p, v1, &mut replaced);
         }
+        // v1's fan after the collapse: the triangles made, and its faces
+        // that stay (when it stays)
+        let mut fan = std::mem::take(&mut self.fan);
+        fan.clear();
+        fan.extend_from_slice(&made);
+        if at == m.pos[v1 as usize] {
+            Self::fan_moved(m, p, v1, at, k1, v0, &mut fan);
+        }
+        let fans = is_simple_fan(&fan).then_some(SimpleFans {
+            patch: p,
+            apexes: [Some(k1), None, None],
+        });
+        self.fan = fan;
         self.made = made;
         self.replaced = replaced;
-        if !self.guard_clear() {
+        if !self.guard_clear(fans) {
             return false;
         }
         let changed = std::mem::take(&mut self.replaced);
@@ -436,7 +454,7 @@ impl<'r> Remesher<'r> {
         self.made = made;
         self.replaced.clear();
         self.replaced.extend_from_slice(&faces);
-        if !self.guard_clear() {
+        if !self.guard_clear(None) {
             return false;
         }
         self.unregister(&faces);
@@ -602,7 +620,7 @@ impl<'r> Remesher<'r> {
             Self::faces_around(m, pi, lv, &mut self.replaced);
         }
         self.made = made;
-        if !self.guard_clear() {
+        if !self.guard_clear(None) {
             return false;
         }
         let faces = self.replaced.clone();
@@ -701,7 +719,7 @@ impl<'r> Remesher<'r> {
             Self::faces_around(m, p, v0, &mut self.replaced);
         }
         self.made = made;
-        if !self.guard_clear() {
+        if !self.guard_clear(None) {
             return false;
         }
         let faces = self.replaced.clone();
@@ -979,6 +997,9 @@ impl<'r> Remesher<'r> {
         let mut out = vec![false; m.face_slots()];
         let mut queued = vec![false; m.face_slots()];
         let mut queue: Vec<u32> = Vec::new();
+        // per vertex: its fan as the mesh is now not looked at (0), simple
+        // (1) or not shown so (2)
+        let mut simple = vec![0u8; m.vertex_slots()];
         for &(v, to, near) in moves {
             let m = &mut self.patches[pu].mesh;
             from[v as usize] = Some((m.pos[v as usize], m.hint[v as usize]));
@@ -1008,8 +1029,9 @@ impl<'r> Remesher<'r> {
                 back.truncate(own);
                 self.stats[0] += 1;
                 self.stats[1] += 1;
+                let fans = Self::simple_fans_of(m, p, f, &mut simple);
                 let t = self.time_guard.then(std::time::Instant::now);
-                let hit = self.guard.crossing(&Tri::of_face(m, p, f));
+                let hit = self.guard.crossing(&Tri::of_face(m, p, f), fans);
                 if let Some(t) = t {
                     self.stats[2] += t.elapsed().as_nanos() as u64;
                 }
@@ -1048,6 +1070,11 @@ impl<'r> Remesher<'r> {
                 let m = &mut self.patches[pu].mesh;
                 m.pos[v as usize] = at;
                 m.hint[v as usize] = hint;
+                // the fans holding v change
+                simple[v as usize] = 0;
+                for h in m.outgoing(v) {
+                    simple[m.to(h) as usize] = 0;
+                }
                 Self::recheck_faces_at(m, &mut self.guard, p, v, &mut out, &mut queued, &mut queue);
             }
             // the faces that failed, checked again with what was taken back
@@ -1084,6 +1111,26 @@ impl<'r> Remesher<'r> {
 
     /// Takes the faces around `v` out of the guard (those not out already)
     /// and queues them to be checked (those not queued already).
+    /// The corners of face `f` of patch `p` whose fans are simple as the
+    /// mesh is now (`simple`: per vertex, 0 not looked at yet, 1 simple,
+    /// 2 not shown so; filled in here).
+    fn simple_fans_of(m: &HalfedgeMesh, p: u32, f: u32, simple: &mut [u8]) -> Option<SimpleFans> {
+        let mut apexes = [None; 3];
+        for (apex, v) in apexes.iter_mut().zip(m.face_vertices(f)) {
+            let vu = v as usize;
+            if simple[vu] == 0 {
+                simple[vu] = if fan_is_simple(m, v) { 1 } else { 2 };
+            }
+            if simple[vu] == 1 {
+                *apex = Some(vertex_key(m, p, v));
+            }
+        }
+        apexes
+            .iter()
+            .any(Option::is_some)
+            .then_some(SimpleFans { patch: p, apexes })
+    }
+
     fn recheck_faces_at(
         m: &HalfedgeMesh,
         guard: &mut Guard,
@@ -1415,6 +1462,44 @@ fn face_move_ok(m: &HalfedgeMesh, f: u32, from: &[Option<(DVec3, u32)>], fit: Fi
 /// Whether collapsing `h` (from(h) moves to `p`, then merges into to(h)) keeps
 /// the triangles facing the same way, of acceptable quality, following the
 /// reference, and each new edge no longer than 4/3 of its own target in
+/// Whether the faces around vertex `v` form a simple fan as the mesh is now
+/// ([`is_simple_ring`]): they then meet one another only along their
+/// shared edges.
+fn fan_is_simple(m: &HalfedgeMesh, v: u32) -> bool {
+    let mut ring = [DVec3::ZERO; FAN_MAX + 1];
+    let mut ids = [NONE; 2];
+    let mut len = 0;
+    let mut closed = true;
+    for h in m.outgoing(v) {
+        if m.is_boundary_halfedge(h) {
+            closed = false;
+            continue;
+        }
+        let (a, b) = (m.to(h), m.to(m.next(h)));
+        if len == 0 {
+            ring[0] = m.pos[a as usize];
+            ids[0] = a;
+            len = 1;
+        } else if a != ids[1] || len > FAN_MAX {
+            // (the faces come round the vertex in order, each one's far
+            // corner the next one's near corner)
+            return false;
+        }
+        ring[len] = m.pos[b as usize];
+        ids[1] = b;
+        len += 1;
+    }
+    if len == 0 {
+        return true;
+    }
+    if closed {
+        // the last far corner is the first near corner
+        ids[1] == ids[0] && is_simple_ring(m.pos[v as usize], &ring[..len - 1], true)
+    } else {
+        is_simple_ring(m.pos[v as usize], &ring[..len], false)
+    }
+}
+
 /// `max_edge` (the split pass's bound); `None`: no length bound.
 pub(super) fn collapse_geometry_ok(
     m: &HalfedgeMesh,
