@@ -167,6 +167,29 @@ impl Blocks {
     }
 }
 
+/// `work` of each item of `todo` (sorted largest first), in the order of
+/// `todo`. Each thread takes the next item when it is free, so the largest
+/// blocks start first and the small ones fill the gaps at the end (rayon's
+/// halving of the list gave one thread the largest half of a colour's
+/// blocks). Which thread runs an item changes nothing in its result.
+fn largest_first<T: Send>(todo: &[usize], work: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let threads = rayon::current_num_threads().min(todo.len()).max(1);
+    let mut done: Vec<(usize, T)> = (0..threads)
+        .into_par_iter()
+        .with_max_len(1)
+        .flat_map_iter(|_| {
+            std::iter::from_fn(|| {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                todo.get(i).map(|&b| (i, work(b)))
+            })
+            .collect::<Vec<_>>()
+        })
+        .collect();
+    done.sort_unstable_by_key(|&(i, _)| i);
+    done.into_iter().map(|(_, t)| t).collect()
+}
+
 /// What one slab's remeshing gives back, over global ids: `NEW + i` for the
 /// i-th vertex it made.
 struct Outcome {
@@ -250,11 +273,9 @@ impl Work {
         todo.sort_by_key(|&b| std::cmp::Reverse(buckets[b].len()));
         let closed = self.closed_components(&todo, &buckets);
         let t_pre = t_pass.elapsed();
-        let outcomes: Vec<Outcome> = todo
-            .par_iter()
-            .with_max_len(1)
-            .map(|&b| self.remesh_block(blocks, b, &buckets, &uses, &closed, shared))
-            .collect();
+        let outcomes = largest_first(&todo, |b| {
+            self.remesh_block(blocks, b, &buckets, &uses, &closed, shared)
+        });
         if std::env::var_os("SEPTA_DEBUG_ITER").is_some() {
             let mut t = [0u64; 10];
             for o in &outcomes {
@@ -813,9 +834,33 @@ fn splice(cv: &[u32], closed: bool, runs: Vec<RunResult>) -> Vec<u32> {
 
 #[cfg(test)]
 mod tests {
-    use super::{NEW, Outcome, RunResult, Work, splice};
+    use super::{NEW, Outcome, RunResult, Work, largest_first, splice};
     use crate::remesh::network::VertexKind;
     use glam::DVec3;
+
+    /// Every item is worked once and its result comes back in the order of
+    /// the list, whatever the number of threads.
+    #[test]
+    fn largest_first_keeps_the_order_of_the_list() {
+        let todo: Vec<usize> = (0..37).map(|i| (i * 7919) % 101).collect();
+        let expect: Vec<usize> = todo.iter().map(|b| b * b).collect();
+        for threads in [1, 2, 3, 8] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("a pool");
+            let runs = std::sync::atomic::AtomicUsize::new(0);
+            let got = pool.install(|| {
+                largest_first(&todo, |b| {
+                    runs.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    b * b
+                })
+            });
+            assert_eq!(got, expect, "{threads} threads");
+            assert_eq!(runs.into_inner(), todo.len());
+        }
+        assert!(largest_first(&[], |b: usize| b).is_empty());
+    }
 
     /// A block's outcome that made two vertices, the second of them taken
     /// away again in the same pass (a curve vertex split, then collapsed):
