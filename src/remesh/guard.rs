@@ -394,26 +394,32 @@ impl Guard {
             skipped: Vec::new(),
             trusted,
         };
-        let mut todo: Vec<(Tri, u32, u32)> =
-            obstacles.into_iter().map(|t| (t, NONE, NONE)).collect();
+        // the entries: the obstacles, then every live face (each triangle
+        // copied once, each box computed once)
+        g.tris = obstacles;
+        g.owner = vec![(NONE, NONE); g.tris.len()];
         for (p, st) in patches.iter().enumerate() {
             for f in 0..st.mesh.face_slots() as u32 {
                 if !st.mesh.face_dead(f) {
-                    todo.push((Tri::of_face(&st.mesh, p as u32, f), p as u32, f));
+                    g.entry[p][f as usize] = g.tris.len() as u32;
+                    g.tris.push(Tri::of_face(&st.mesh, p as u32, f));
+                    g.owner.push((p as u32, f));
                 }
             }
         }
-        let n = todo.len();
-        g.level_of.reserve(n);
-        g.cell_of.reserve(n);
-        g.place_of.reserve(n);
-        g.tris.reserve(n);
-        g.owner.reserve(n);
         // first the buckets' sizes, then each bucket's stretch in the order
         // of its cell (a bucket's room: its entries and a few more, so that
         // the first operations there need not move it)
-        let places: Vec<(usize, u32)> = todo.iter().map(|item| g.place(&item.0)).collect();
-        for &(level, c) in &places {
+        let places: Vec<(usize, u32, Box32)> = g
+            .tris
+            .iter()
+            .map(|t| {
+                let b = t.bounds();
+                let (level, c) = g.place_of_box(b);
+                (level, c, Box32::outward(b.0, b.1))
+            })
+            .collect();
+        for &(level, c, _) in &places {
             g.levels[level].buckets[c as usize].cap += 1;
         }
         let mut start = 0u32;
@@ -433,11 +439,18 @@ impl Guard {
                 e: NONE,
             },
         );
-        for ((t, p, f), (level, c)) in todo.into_iter().zip(places) {
-            let e = g.add_at(t, (p, f), level, c);
-            if p != NONE {
-                g.entry[p as usize][f as usize] = e;
-            }
+        g.level_of.reserve(places.len());
+        g.cell_of.reserve(places.len());
+        g.place_of.reserve(places.len());
+        for (e, (level, c, b)) in places.into_iter().enumerate() {
+            let l = &mut g.levels[level];
+            let bucket = &mut l.buckets[c as usize];
+            g.pool[(bucket.start + bucket.len) as usize] = Item { b, e: e as u32 };
+            g.place_of.push(bucket.len);
+            bucket.len += 1;
+            l.count += 1;
+            g.level_of.push(level as u8);
+            g.cell_of.push(c);
         }
         g
     }
@@ -445,7 +458,11 @@ impl Guard {
     /// The level and cell that triangle `t` is listed in: the finest level
     /// whose cells are at least twice its half box, the cell of its centre.
     fn place(&self, t: &Tri) -> (usize, u32) {
-        let b = t.bounds();
+        self.place_of_box(t.bounds())
+    }
+
+    /// [`Guard::place`] of a triangle with box `b`.
+    fn place_of_box(&self, b: (DVec3, DVec3)) -> (usize, u32) {
         let half = ((b.1 - b.0) * 0.5).max_element();
         let top = self.levels.len() - 1;
         let level = if half.is_finite() {
