@@ -321,10 +321,22 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
 
     let clock = std::time::Instant::now();
     let groups = mesh.patch_triangles();
-    let references: Vec<SurfaceRef> = groups
-        .par_iter()
-        .map(|tris| patch_reference(mesh, &smoothed_pos, tris))
-        .collect::<Result<_>>()?;
+    let references: Vec<SurfaceRef> = {
+        // largest first: the patches' sizes differ by orders of magnitude
+        let mut order: Vec<usize> = (0..groups.len()).collect();
+        order.sort_by_key(|&p| std::cmp::Reverse(groups[p].len()));
+        let built =
+            work::largest_first(&order, |p| patch_reference(mesh, &smoothed_pos, &groups[p]));
+        let mut by_patch: Vec<Option<Result<SurfaceRef>>> =
+            (0..groups.len()).map(|_| None).collect();
+        for (p, r) in order.into_iter().zip(built) {
+            by_patch[p] = Some(r);
+        }
+        by_patch
+            .into_iter()
+            .map(|r| r.expect("every patch built"))
+            .collect::<Result<_>>()?
+    };
     let curve_references: Vec<CurveRef> = net
         .curves
         .par_iter()
@@ -536,7 +548,12 @@ fn isotropic_split_above() -> f64 {
 /// The smoothed reference of one patch: its triangles at the smoothed
 /// positions, with their neighbours across edges (for walks).
 fn patch_reference(mesh: &InterfaceMesh, smoothed: &[DVec3], tris: &[u32]) -> Result<SurfaceRef> {
-    let mut local_of = hashbrown::HashMap::with_capacity(tris.len());
+    // local ids in order of first appearance, looked up in the thread's
+    // dense table (a hash map cost most of the build)
+    let mut local = work::LOCAL_IDS.with(|c| c.take());
+    if local.len() < smoothed.len() {
+        local.resize(smoothed.len(), work::NO_LOCAL);
+    }
     let mut pos = Vec::new();
     let mut tag = Vec::new();
     let mut local_tris = Vec::with_capacity(tris.len());
@@ -545,13 +562,20 @@ fn patch_reference(mesh: &InterfaceMesh, smoothed: &[DVec3], tris: &[u32]) -> Re
         let tri = mesh.triangles[t as usize];
         ref_tris.push(tri.map(|v| smoothed[v as usize]));
         local_tris.push(tri.map(|v| {
-            *local_of.entry(v).or_insert_with(|| {
+            let l = &mut local[v as usize];
+            if *l == work::NO_LOCAL {
+                *l = pos.len() as u32;
                 pos.push(smoothed[v as usize]);
                 tag.push(v);
-                (pos.len() - 1) as u32
-            })
+            }
+            *l
         }));
     }
+    // (every entry set here back to none, for the next user on this thread)
+    for &v in &tag {
+        local[v as usize] = work::NO_LOCAL;
+    }
+    work::LOCAL_IDS.with(|c| c.set(local));
     let m = HalfedgeMesh::from_triangles(pos, tag, &local_tris).map_err(|e| {
         let p = mesh.triangle_patch[tris[0] as usize] as usize;
         let [a, b] = mesh.patches[p].labels;

@@ -172,7 +172,7 @@ impl Blocks {
 /// blocks start first and the small ones fill the gaps at the end (rayon's
 /// halving of the list gave one thread the largest half of a colour's
 /// blocks). Which thread runs an item changes nothing in its result.
-fn largest_first<T: Send>(todo: &[usize], work: impl Fn(usize) -> T + Sync) -> Vec<T> {
+pub(super) fn largest_first<T: Send>(todo: &[usize], work: impl Fn(usize) -> T + Sync) -> Vec<T> {
     let next = std::sync::atomic::AtomicUsize::new(0);
     let threads = rayon::current_num_threads().min(todo.len()).max(1);
     let mut done: Vec<(usize, T)> = (0..threads)
@@ -210,7 +210,7 @@ const NEW: u32 = 1 << 31;
 const NONE_COMPONENT: u32 = u32::MAX;
 
 /// No local id (in [`LOCAL_IDS`]).
-const NO_LOCAL: u32 = u32::MAX;
+pub(super) const NO_LOCAL: u32 = u32::MAX;
 
 thread_local! {
     /// Per worker thread: the local id of each global vertex in the block
@@ -218,7 +218,7 @@ thread_local! {
     /// block to block: a hash map per block cost more than the rest of the
     /// gathering (taken out while in use, so a block started on this thread
     /// meanwhile makes its own).
-    static LOCAL_IDS: std::cell::Cell<Vec<u32>> = const { std::cell::Cell::new(Vec::new()) };
+    pub(super) static LOCAL_IDS: std::cell::Cell<Vec<u32>> = const { std::cell::Cell::new(Vec::new()) };
 }
 
 /// The closed surface components of the working mesh: per triangle its
