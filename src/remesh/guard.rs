@@ -439,18 +439,11 @@ impl Guard {
                 e: NONE,
             },
         );
-        g.level_of.reserve(places.len());
-        g.cell_of.reserve(places.len());
-        g.place_of.reserve(places.len());
+        g.level_of = vec![0; places.len()];
+        g.cell_of = vec![NONE; places.len()];
+        g.place_of = vec![NONE; places.len()];
         for (e, (level, c, b)) in places.into_iter().enumerate() {
-            let l = &mut g.levels[level];
-            let bucket = &mut l.buckets[c as usize];
-            g.pool[(bucket.start + bucket.len) as usize] = Item { b, e: e as u32 };
-            g.place_of.push(bucket.len);
-            bucket.len += 1;
-            l.count += 1;
-            g.level_of.push(level as u8);
-            g.cell_of.push(c);
+            g.append(e as u32, level, c, b);
         }
         g
     }
@@ -525,13 +518,22 @@ impl Guard {
             b.start = start as u32;
             b.cap = cap;
         }
-        self.pool[(b.start + b.len) as usize] = Item { b: t.box32(), e };
-        self.place_of[e as usize] = b.len;
-        b.len += 1;
+        self.append(e, level, c, t.box32());
+        self.tris[e as usize] = t;
+    }
+
+    /// Puts entry `e`, with box `b`, at the end of the bucket of cell `c`
+    /// of `level`, which has room for it.
+    fn append(&mut self, e: u32, level: usize, c: u32, b: Box32) {
+        let l = &mut self.levels[level];
+        let bucket = &mut l.buckets[c as usize];
+        debug_assert!(bucket.len < bucket.cap, "a bucket with room");
+        self.pool[(bucket.start + bucket.len) as usize] = Item { b, e };
+        self.place_of[e as usize] = bucket.len;
+        bucket.len += 1;
         l.count += 1;
         self.level_of[e as usize] = level as u8;
         self.cell_of[e as usize] = c;
-        self.tris[e as usize] = t;
     }
 
     /// Takes entry `e` out of its bucket.
