@@ -321,22 +321,14 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
 
     let clock = std::time::Instant::now();
     let groups = mesh.patch_triangles();
-    let references: Vec<SurfaceRef> = {
-        // largest first: the patches' sizes differ by orders of magnitude
-        let mut order: Vec<usize> = (0..groups.len()).collect();
-        order.sort_by_key(|&p| std::cmp::Reverse(groups[p].len()));
-        let built =
-            work::largest_first(&order, |p| patch_reference(mesh, &smoothed_pos, &groups[p]));
-        let mut by_patch: Vec<Option<Result<SurfaceRef>>> =
-            (0..groups.len()).map(|_| None).collect();
-        for (p, r) in order.into_iter().zip(built) {
-            by_patch[p] = Some(r);
-        }
-        by_patch
-            .into_iter()
-            .map(|r| r.expect("every patch built"))
-            .collect::<Result<_>>()?
-    };
+    // largest first: the patches' sizes differ by orders of magnitude
+    let references: Vec<SurfaceRef> = work::by_size_largest_first(
+        groups.len(),
+        |p| groups[p].len(),
+        |p| patch_reference(mesh, &smoothed_pos, &groups[p]),
+    )
+    .into_iter()
+    .collect::<Result<_>>()?;
     let curve_references: Vec<CurveRef> = net
         .curves
         .par_iter()
@@ -550,10 +542,7 @@ fn isotropic_split_above() -> f64 {
 fn patch_reference(mesh: &InterfaceMesh, smoothed: &[DVec3], tris: &[u32]) -> Result<SurfaceRef> {
     // local ids in order of first appearance, looked up in the thread's
     // dense table (a hash map cost most of the build)
-    let mut local = work::LOCAL_IDS.with(|c| c.take());
-    if local.len() < smoothed.len() {
-        local.resize(smoothed.len(), work::NO_LOCAL);
-    }
+    let mut local = work::take_local_ids(smoothed.len());
     let mut pos = Vec::new();
     let mut tag = Vec::new();
     let mut local_tris = Vec::with_capacity(tris.len());
@@ -571,11 +560,7 @@ fn patch_reference(mesh: &InterfaceMesh, smoothed: &[DVec3], tris: &[u32]) -> Re
             *l
         }));
     }
-    // (every entry set here back to none, for the next user on this thread)
-    for &v in &tag {
-        local[v as usize] = work::NO_LOCAL;
-    }
-    work::LOCAL_IDS.with(|c| c.set(local));
+    work::return_local_ids(local, &tag);
     let m = HalfedgeMesh::from_triangles(pos, tag, &local_tris).map_err(|e| {
         let p = mesh.triangle_patch[tris[0] as usize] as usize;
         let [a, b] = mesh.patches[p].labels;

@@ -190,6 +190,24 @@ pub(super) fn largest_first<T: Send>(todo: &[usize], work: impl Fn(usize) -> T +
     done.into_iter().map(|(_, t)| t).collect()
 }
 
+/// `work` of every item `0..n`, the largest (by `size`) started first
+/// ([`largest_first`]), results in item order.
+pub(super) fn by_size_largest_first<T: Send>(
+    n: usize,
+    size: impl Fn(usize) -> usize,
+    work: impl Fn(usize) -> T + Sync,
+) -> Vec<T> {
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(size(i)));
+    let mut done: Vec<(usize, T)> = order
+        .iter()
+        .copied()
+        .zip(largest_first(&order, work))
+        .collect();
+    done.sort_unstable_by_key(|&(i, _)| i);
+    done.into_iter().map(|(_, t)| t).collect()
+}
+
 /// What one slab's remeshing gives back, over global ids: `NEW + i` for the
 /// i-th vertex it made.
 struct Outcome {
@@ -218,7 +236,26 @@ thread_local! {
     /// block to block: a hash map per block cost more than the rest of the
     /// gathering (taken out while in use, so a block started on this thread
     /// meanwhile makes its own).
-    pub(super) static LOCAL_IDS: std::cell::Cell<Vec<u32>> = const { std::cell::Cell::new(Vec::new()) };
+    static LOCAL_IDS: std::cell::Cell<Vec<u32>> = const { std::cell::Cell::new(Vec::new()) };
+}
+
+/// This thread's table of local ids ([`NO_LOCAL`] everywhere), for `n`
+/// global vertices; give it back with [`return_local_ids`].
+pub(super) fn take_local_ids(n: usize) -> Vec<u32> {
+    let mut local = LOCAL_IDS.with(|c| c.take());
+    if local.len() < n {
+        local.resize(n, NO_LOCAL);
+    }
+    local
+}
+
+/// Gives the table back to this thread, with the entries of the global
+/// vertices `used` (the only ones set) back to [`NO_LOCAL`].
+pub(super) fn return_local_ids(mut local: Vec<u32>, used: &[u32]) {
+    for &g in used {
+        local[g as usize] = NO_LOCAL;
+    }
+    LOCAL_IDS.with(|c| c.set(local));
 }
 
 /// The closed surface components of the working mesh: per triangle its
@@ -428,10 +465,7 @@ impl Work {
         let (lo, hi) = blocks.trusted(s);
 
         // local vertices: those of the slab's triangles first
-        let mut local = LOCAL_IDS.with(|c| c.take());
-        if local.len() < self.pos.len() {
-            local.resize(self.pos.len(), NO_LOCAL);
-        }
+        let mut local = take_local_ids(self.pos.len());
         let mut global: Vec<u32> = Vec::with_capacity(own.len());
         let mut count: Vec<u32> = Vec::with_capacity(own.len());
         let mut local_of = |v: u32, global: &mut Vec<u32>, count: &mut Vec<u32>| -> u32 {
@@ -581,11 +615,7 @@ impl Work {
             }
         }
 
-        // (every entry set here back to none, for the next block on this thread)
-        for &g in &global {
-            local[g as usize] = NO_LOCAL;
-        }
-        LOCAL_IDS.with(|c| c.set(local));
+        return_local_ids(local, &global);
 
         // the guard's cells: about the mean edge length of the slab
         let mean_edge = own_tris
@@ -834,7 +864,7 @@ fn splice(cv: &[u32], closed: bool, runs: Vec<RunResult>) -> Vec<u32> {
 
 #[cfg(test)]
 mod tests {
-    use super::{NEW, Outcome, RunResult, Work, largest_first, splice};
+    use super::{NEW, Outcome, RunResult, Work, by_size_largest_first, largest_first, splice};
     use crate::remesh::network::VertexKind;
     use glam::DVec3;
 
@@ -860,6 +890,10 @@ mod tests {
             assert_eq!(runs.into_inner(), todo.len());
         }
         assert!(largest_first(&[], |b: usize| b).is_empty());
+        // by size: results in item order whatever the sizes
+        let sizes = [3usize, 40, 1, 40, 7];
+        let got = by_size_largest_first(sizes.len(), |i| sizes[i], |i| 10 * i);
+        assert_eq!(got, vec![0, 10, 20, 30, 40]);
     }
 
     /// A block's outcome that made two vertices, the second of them taken
