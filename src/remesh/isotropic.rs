@@ -65,6 +65,19 @@ pub(super) struct PatchState<'r> {
     pub(super) offset: f64,
 }
 
+impl PatchState<'_> {
+    /// Puts the faces from slot `first` on (those just made) in closed
+    /// component `c` (or none: [`NONE`]).
+    fn set_component_of_faces_from(&mut self, first: u32, c: u32) {
+        let first = first as usize;
+        if self.component.len() < first {
+            self.component.resize(first, NONE);
+        }
+        self.component.truncate(first);
+        self.component.resize(self.mesh.face_slots(), c);
+    }
+}
+
 /// How closely new triangles must follow the reference surface.
 #[derive(Clone, Copy)]
 pub(super) struct Fit<'a> {
@@ -484,7 +497,7 @@ impl<'r> Remesher<'r> {
             .first()
             .and_then(|&(_, f)| st.component.get(f as usize).copied())
             .unwrap_or(NONE);
-        st.component.resize(st.mesh.face_slots(), c);
+        st.set_component_of_faces_from(before, c);
         let mut changed = old;
         changed.extend((before..st.mesh.face_slots() as u32).map(|f| (p, f)));
         self.register(&changed);
@@ -574,12 +587,14 @@ impl<'r> Remesher<'r> {
         self.alive.push(true);
         let mut changed = old;
         for (p, h) in sites {
-            let mesh = &mut self.patches[p as usize].mesh;
-            let before = mesh.face_slots() as u32;
-            let lm = mesh.split(h, mid);
-            mesh.tag[lm as usize] = new;
-            mesh.locked[lm as usize] = true;
-            changed.extend((before..mesh.face_slots() as u32).map(|f| (p, f)));
+            let st = &mut self.patches[p as usize];
+            let before = st.mesh.face_slots() as u32;
+            let lm = st.mesh.split(h, mid);
+            st.mesh.tag[lm as usize] = new;
+            st.mesh.locked[lm as usize] = true;
+            // (faces at a junction curve: of no closed component)
+            st.set_component_of_faces_from(before, NONE);
+            changed.extend((before..st.mesh.face_slots() as u32).map(|f| (p, f)));
             self.copies.entry(new).or_default().push((p, lm));
         }
         self.register(&changed);
@@ -1257,6 +1272,7 @@ impl<'r> Remesher<'r> {
                     patch: p as u32,
                     hint: m.face_hint[f as usize].get(),
                     kept: st.kept.get(f as usize).copied().unwrap_or(false),
+                    component: st.component.get(f as usize).copied().unwrap_or(NONE),
                 });
             }
         }
@@ -1288,6 +1304,8 @@ pub(super) struct ResultTriangle {
     pub(super) patch: u32,
     pub(super) hint: u32,
     pub(super) kept: bool,
+    /// Its closed component (an index into the region's volumes) or [`NONE`].
+    pub(super) component: u32,
 }
 
 /// A remeshed region (see [`Remesher::finish`]).

@@ -349,16 +349,15 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
             hint[t as usize] = i as u32;
         }
     }
-    let mut work = Work {
-        pos: smoothed_pos.clone(),
-        kind: net.kind.clone(),
-        tris: mesh.triangles.clone(),
-        patch: mesh.triangle_patch.clone(),
+    let mut work = Work::new(
+        smoothed_pos.clone(),
+        net.kind.clone(),
+        mesh.triangles.clone(),
+        mesh.triangle_patch.clone(),
         hint,
-        kept: vec![true; mesh.triangle_count()],
-        curves: net.curves.iter().map(|c| c.vertices.clone()).collect(),
-        closed: net.curves.iter().map(|c| c.closed).collect(),
-    };
+        net.curves.iter().map(|c| c.vertices.clone()).collect(),
+        net.curves.iter().map(|c| c.closed).collect(),
+    );
     timings.setup = clock.elapsed().as_secs_f64();
 
     let clock = std::time::Instant::now();
@@ -442,6 +441,7 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
         let reach = longest.max(sizing.max() * isotropic_split_above());
         let blocks = Blocks::over(&work, BLOCK_REACHES * reach, reach, 0.5 * (it % 2) as f64);
         let t = std::time::Instant::now();
+        work.assign_blocks(&blocks);
         for colour in 0..COLOURS {
             work.pass(&blocks, colour, &shared);
         }

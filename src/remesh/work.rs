@@ -27,8 +27,9 @@ use crate::geom::dsu::Dsu;
 use crate::geom::nearest::{CurveRef, SurfaceRef};
 
 /// The mesh being remeshed: one vertex pool, triangles with their patch, a
-/// hint into the patch's reference, and whether they are unchanged since the
-/// extraction; the junction curves over the pool.
+/// hint into the patch's reference, whether they are unchanged since the
+/// extraction, their closed component and their block in this iteration;
+/// the junction curves over the pool.
 #[derive(Clone, Debug)]
 pub(super) struct Work {
     pub(super) pos: Vec<DVec3>,
@@ -37,6 +38,19 @@ pub(super) struct Work {
     pub(super) patch: Vec<u32>,
     pub(super) hint: Vec<u32>,
     pub(super) kept: Vec<bool>,
+    /// Per triangle: its closed component (a surface component without
+    /// junction vertices) or [`NONE_COMPONENT`]. Found once: no operation
+    /// joins, cuts or opens a component, and the triangles an operation
+    /// makes take the component of those they replace.
+    component: Vec<u32>,
+    /// Per closed component: a point near it, about which its volume is
+    /// summed (the sum over a closed surface does not depend on the
+    /// origin, and a near one keeps it precise).
+    origin: Vec<DVec3>,
+    /// Per triangle: the block holding its centroid, of the blocks given to
+    /// [`Work::assign_blocks`] (the triangles a pass makes are assigned as
+    /// they are made).
+    block: Vec<u32>,
     pub(super) curves: Vec<Vec<u32>>,
     pub(super) closed: Vec<bool>,
 }
@@ -217,9 +231,20 @@ struct Outcome {
     /// Vertices made here: position, kind, and whether still in use (a
     /// vertex made by a split may be collapsed away in the same pass).
     made: Vec<(DVec3, VertexKind, bool)>,
-    triangles: Vec<([u32; 3], u32, u32, bool)>,
+    triangles: Vec<OutcomeTriangle>,
     /// Per curve run: its curve and what became of it.
     runs: Vec<(u32, RunResult)>,
+}
+
+/// A triangle of an [`Outcome`], over global ids.
+struct OutcomeTriangle {
+    vertices: [u32; 3],
+    patch: u32,
+    hint: u32,
+    kept: bool,
+    component: u32,
+    /// The block holding its centroid.
+    block: u32,
 }
 
 const NEW: u32 = 1 << 31;
@@ -258,13 +283,11 @@ pub(super) fn return_local_ids(mut local: Vec<u32>, used: &[u32]) {
     LOCAL_IDS.with(|c| c.set(local));
 }
 
-/// The closed surface components of the working mesh: per triangle its
-/// component (or [`NONE_COMPONENT`]), per component the share of its signed
-/// enclosed volume each slab of a pass may use (its volume over the number
-/// of slabs of the pass holding it, so that together they cannot take it
-/// past zero).
+/// Per closed surface component of the working mesh ([`Work::component`]):
+/// the share of its signed enclosed volume each slab of a pass may use (its
+/// volume over the number of slabs of the pass holding it, so that together
+/// they cannot take it past zero).
 struct ClosedComponents {
-    of_triangle: Vec<u32>,
     share: Vec<f64>,
 }
 
@@ -279,36 +302,73 @@ struct RunResult {
 }
 
 impl Work {
-    /// One remeshing iteration of every block of colour `colour` (below
-    /// [`COLOURS`]).
-    pub(super) fn pass(&mut self, blocks: &Blocks, colour: usize, shared: &Shared) {
-        let t_pass = std::time::Instant::now();
-        let slab_of: Vec<u32> = self
+    /// The working mesh over vertices `pos` (of kinds `kind`) and triangles
+    /// `tris` (of patches `patch`, with reference hints `hint`), all as
+    /// extracted, and the junction curves (vertex lists, closed or not).
+    pub(super) fn new(
+        pos: Vec<DVec3>,
+        kind: Vec<VertexKind>,
+        tris: Vec<[u32; 3]>,
+        patch: Vec<u32>,
+        hint: Vec<u32>,
+        curves: Vec<Vec<u32>>,
+        closed: Vec<bool>,
+    ) -> Self {
+        let (component, origin) = closed_components(&pos, &kind, &tris);
+        Work {
+            kept: vec![true; tris.len()],
+            block: vec![0; tris.len()],
+            pos,
+            kind,
+            tris,
+            patch,
+            hint,
+            component,
+            origin,
+            curves,
+            closed,
+        }
+    }
+
+    /// Puts every triangle in the block of `blocks` holding its centroid
+    /// (the blocks of the passes that follow).
+    pub(super) fn assign_blocks(&mut self, blocks: &Blocks) {
+        let pos = &self.pos;
+        self.block = self
             .tris
             .par_iter()
-            .map(|t| {
-                let c =
-                    (self.pos[t[0] as usize] + self.pos[t[1] as usize] + self.pos[t[2] as usize])
-                        / 3.0;
-                blocks.of(c) as u32
-            })
+            .map(|t| blocks.of(centroid(pos, t)) as u32)
             .collect();
+    }
+
+    /// How many triangles use each vertex.
+    fn vertex_uses(&self) -> Vec<u32> {
+        use std::sync::atomic::{AtomicU32, Ordering};
+        let uses: Vec<AtomicU32> = (0..self.pos.len()).map(|_| AtomicU32::new(0)).collect();
+        self.tris.par_iter().with_min_len(1 << 14).for_each(|t| {
+            for &v in t {
+                uses[v as usize].fetch_add(1, Ordering::Relaxed);
+            }
+        });
+        uses.into_iter().map(AtomicU32::into_inner).collect()
+    }
+
+    /// One remeshing iteration of every block of colour `colour` (below
+    /// [`COLOURS`]) of `blocks`, the blocks last given to [`Work::assign_blocks`].
+    pub(super) fn pass(&mut self, blocks: &Blocks, colour: usize, shared: &Shared) {
+        let t_pass = std::time::Instant::now();
+        debug_assert_eq!(self.block.len(), self.tris.len(), "blocks assigned");
         let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); blocks.len()];
-        for (t, &s) in slab_of.iter().enumerate() {
+        for (t, &s) in self.block.iter().enumerate() {
             buckets[s as usize].push(t as u32);
         }
-        let mut uses = vec![0u32; self.pos.len()];
-        for t in &self.tris {
-            for &v in t {
-                uses[v as usize] += 1;
-            }
-        }
+        let uses = self.vertex_uses();
         // largest blocks first, one per task: the threads stay busy
         let mut todo: Vec<usize> = (0..blocks.len())
             .filter(|&b| blocks.colour(b) == colour && !buckets[b].is_empty())
             .collect();
         todo.sort_by_key(|&b| std::cmp::Reverse(buckets[b].len()));
-        let closed = self.closed_components(&todo, &buckets);
+        let closed = self.closed_component_shares(&todo, &buckets);
         let t_pre = t_pass.elapsed();
         let outcomes = largest_first(&todo, |b| {
             self.remesh_block(blocks, b, &buckets, &uses, &closed, shared)
@@ -349,58 +409,47 @@ impl Work {
             );
         }
         let t_m = std::time::Instant::now();
-        self.merge(&todo, &slab_of, outcomes);
+        self.merge(&todo, outcomes);
         if std::env::var_os("SEPTA_DEBUG_ITER").is_some() {
             eprintln!("  merge {:?}", t_m.elapsed());
         }
-        if std::env::var_os("SEPTA_DEBUG_WORK").is_some() {
+        if cfg!(debug_assertions) || std::env::var_os("SEPTA_DEBUG_WORK").is_some() {
             if let Err(e) = self.check() {
                 panic!("after pass colour {colour} over {blocks:?}: {e}");
             }
         }
     }
 
-    /// The closed surface components (those without junction vertices) and
-    /// the share of its signed volume that each slab of `todo` may use.
-    fn closed_components(&self, todo: &[usize], buckets: &[Vec<u32>]) -> ClosedComponents {
-        let n = self.pos.len();
-        let mut dsu = Dsu::new(n);
-        for t in &self.tris {
-            dsu.union(t[0], t[1]);
-            dsu.union(t[0], t[2]);
-        }
-        let mut junction = vec![false; n];
-        for v in 0..n {
-            if matches!(self.kind[v], VertexKind::Curve(_) | VertexKind::Corner) {
-                junction[dsu.find(v as u32) as usize] = true;
+    /// The share of its signed volume that each slab of `todo` may use, per
+    /// closed component.
+    fn closed_component_shares(&self, todo: &[usize], buckets: &[Vec<u32>]) -> ClosedComponents {
+        let pos = &self.pos;
+        let part: Vec<f64> = self
+            .tris
+            .par_iter()
+            .zip(&self.component)
+            .map(|(t, &c)| {
+                if c == NONE_COMPONENT {
+                    return 0.0;
+                }
+                let o = self.origin[c as usize];
+                let [a, b, c] = t.map(|v| pos[v as usize] - o);
+                a.dot(b.cross(c)) / 6.0
+            })
+            .collect();
+        // summed in triangle order: the same for any number of threads
+        let mut volume = vec![0.0; self.origin.len()];
+        for (&c, v) in self.component.iter().zip(part) {
+            if c != NONE_COMPONENT {
+                volume[c as usize] += v;
             }
-        }
-        let mut index = vec![NONE_COMPONENT; n];
-        let mut volume = Vec::new();
-        let mut of_triangle = Vec::with_capacity(self.tris.len());
-        for t in &self.tris {
-            let r = dsu.find(t[0]) as usize;
-            if junction[r] {
-                of_triangle.push(NONE_COMPONENT);
-                continue;
-            }
-            if index[r] == NONE_COMPONENT {
-                index[r] = volume.len() as u32;
-                volume.push(0.0);
-            }
-            // about the root vertex: the sum over a closed surface does not
-            // depend on the origin, and a near one keeps it precise
-            let o = self.pos[r];
-            let [a, b, c] = t.map(|v| self.pos[v as usize] - o);
-            volume[index[r] as usize] += a.dot(b.cross(c)) / 6.0;
-            of_triangle.push(index[r]);
         }
         // slabs of this colour holding each component
         let mut slabs = vec![0u32; volume.len()];
         let mut last = vec![usize::MAX; volume.len()];
         for &s in todo {
             for &t in &buckets[s] {
-                let c = of_triangle[t as usize];
+                let c = self.component[t as usize];
                 if c != NONE_COMPONENT && last[c as usize] != s {
                     last[c as usize] = s;
                     slabs[c as usize] += 1;
@@ -412,11 +461,26 @@ impl Work {
             .zip(&slabs)
             .map(|(v, &k)| v / k.max(1) as f64)
             .collect();
-        ClosedComponents { of_triangle, share }
+        ClosedComponents { share }
     }
 
-    /// Every patch a manifold: each directed edge once per patch.
+    /// Every patch a manifold: each directed edge once per patch; the
+    /// closed components carried along are those found afresh.
     pub(super) fn check(&self) -> Result<(), String> {
+        let (fresh, _) = closed_components(&self.pos, &self.kind, &self.tris);
+        let mut to_fresh: HashMap<u32, u32> = HashMap::new();
+        let mut to_carried: HashMap<u32, u32> = HashMap::new();
+        for (t, (&c, &f)) in self.component.iter().zip(&fresh).enumerate() {
+            let same = (c == NONE_COMPONENT) == (f == NONE_COMPONENT)
+                && (c == NONE_COMPONENT
+                    || *to_fresh.entry(c).or_insert(f) == f
+                        && *to_carried.entry(f).or_insert(c) == c);
+            if !same {
+                return Err(format!(
+                    "triangle {t}: carried closed component {c}, found afresh {f}"
+                ));
+            }
+        }
         let mut used = vec![false; self.pos.len()];
         for t in &self.tris {
             for &v in t {
@@ -533,17 +597,20 @@ impl Work {
             })
             .collect();
         let mut local_component: HashMap<u32, u32> = HashMap::new();
+        // per local component: its global one
+        let mut components: Vec<u32> = Vec::new();
         let mut volumes = Vec::new();
         for (i, &t) in own.iter().enumerate() {
             let p = patch_ids
                 .binary_search(&self.patch[t as usize])
                 .expect("patch listed");
-            let c = closed.of_triangle[t as usize];
+            let c = self.component[t as usize];
             let c = if c == NONE_COMPONENT {
                 NONE_COMPONENT
             } else {
                 *local_component.entry(c).or_insert_with(|| {
                     volumes.push(closed.share[c as usize]);
+                    components.push(c);
                     (volumes.len() - 1) as u32
                 })
             };
@@ -696,13 +763,22 @@ impl Work {
             out.made
                 .push((result.pos[l], result.kind[l], result.alive[l]));
         }
+        let block_of = |vertices: [u32; 3]| {
+            // (every region vertex where the remesher left it)
+            blocks.of(centroid(&result.pos, &vertices)) as u32
+        };
         for t in &result.triangles {
-            out.triangles.push((
-                t.vertices.map(to_global),
-                patch_ids[t.patch as usize],
-                t.hint,
-                t.kept,
-            ));
+            out.triangles.push(OutcomeTriangle {
+                vertices: t.vertices.map(to_global),
+                patch: patch_ids[t.patch as usize],
+                hint: t.hint,
+                kept: t.kept,
+                component: components
+                    .get(t.component as usize)
+                    .copied()
+                    .unwrap_or(NONE_COMPONENT),
+                block: block_of(t.vertices),
+            });
         }
         for ((c, start, edges, whole), cv) in run_keys.into_iter().zip(result.curves) {
             let vertices = cv.into_iter().map(to_global).collect();
@@ -720,26 +796,41 @@ impl Work {
     }
 
     /// Replaces the triangles of the slabs `done` with their outcomes.
-    fn merge(&mut self, done: &[usize], slab_of: &[u32], outcomes: Vec<Outcome>) {
-        let mut processed = vec![false; slab_of.iter().map(|&s| s as usize + 1).max().unwrap_or(0)];
+    fn merge(&mut self, done: &[usize], outcomes: Vec<Outcome>) {
+        let mut processed = vec![
+            false;
+            self.block
+                .iter()
+                .map(|&s| s as usize + 1)
+                .max()
+                .unwrap_or(0)
+        ];
         for &s in done {
             if s < processed.len() {
                 processed[s] = true;
             }
         }
-        let keep: Vec<bool> = slab_of.iter().map(|&s| !processed[s as usize]).collect();
-        let mut tris = Vec::with_capacity(self.tris.len());
-        let mut patch = Vec::with_capacity(self.tris.len());
-        let mut hint = Vec::with_capacity(self.tris.len());
-        let mut kept = Vec::with_capacity(self.tris.len());
+        // the triangles of the other blocks stay, in order, in place (fresh
+        // arrays cost a page fault every few triangles), then come the
+        // outcomes'
+        let mut n = 0;
         for t in 0..self.tris.len() {
-            if keep[t] {
-                tris.push(self.tris[t]);
-                patch.push(self.patch[t]);
-                hint.push(self.hint[t]);
-                kept.push(self.kept[t]);
+            if !processed[self.block[t] as usize] {
+                self.tris[n] = self.tris[t];
+                self.patch[n] = self.patch[t];
+                self.hint[n] = self.hint[t];
+                self.kept[n] = self.kept[t];
+                self.component[n] = self.component[t];
+                self.block[n] = self.block[t];
+                n += 1;
             }
         }
+        self.tris.truncate(n);
+        self.patch.truncate(n);
+        self.hint.truncate(n);
+        self.kept.truncate(n);
+        self.component.truncate(n);
+        self.block.truncate(n);
         let mut alive = vec![true; self.pos.len()];
         let mut runs_by_curve: HashMap<u32, Vec<RunResult>> = HashMap::new();
         for o in outcomes {
@@ -756,21 +847,19 @@ impl Work {
                 alive.push(a);
             }
             let g = |v: u32| if v >= NEW { base + (v - NEW) } else { v };
-            for (t, p, h, k) in o.triangles {
-                tris.push(t.map(g));
-                patch.push(p);
-                hint.push(h);
-                kept.push(k);
+            for t in o.triangles {
+                self.tris.push(t.vertices.map(g));
+                self.patch.push(t.patch);
+                self.hint.push(t.hint);
+                self.kept.push(t.kept);
+                self.component.push(t.component);
+                self.block.push(t.block);
             }
             for (c, mut run) in o.runs {
                 run.vertices = run.vertices.into_iter().map(g).collect();
                 runs_by_curve.entry(c).or_default().push(run);
             }
         }
-        self.tris = tris;
-        self.patch = patch;
-        self.hint = hint;
-        self.kept = kept;
         let mut curves: Vec<u32> = runs_by_curve.keys().copied().collect();
         curves.sort_unstable();
         for c in curves {
@@ -787,22 +876,21 @@ impl Work {
             return;
         }
         let mut map = vec![u32::MAX; self.pos.len()];
-        let mut next = 0u32;
-        let mut pos = Vec::with_capacity(self.pos.len());
-        let mut kind = Vec::with_capacity(self.pos.len());
+        let mut next = 0;
         for v in 0..self.pos.len() {
             if alive[v] {
-                map[v] = next;
+                map[v] = next as u32;
+                self.pos[next] = self.pos[v];
+                self.kind[next] = self.kind[v];
                 next += 1;
-                pos.push(self.pos[v]);
-                kind.push(self.kind[v]);
             }
         }
-        self.pos = pos;
-        self.kind = kind;
-        for t in &mut self.tris {
-            *t = t.map(|v| map[v as usize]);
-        }
+        self.pos.truncate(next);
+        self.kind.truncate(next);
+        self.tris
+            .par_iter_mut()
+            .with_min_len(1 << 14)
+            .for_each(|t| *t = t.map(|v| map[v as usize]));
         for cv in &mut self.curves {
             for v in cv.iter_mut() {
                 *v = map[*v as usize];
@@ -810,6 +898,52 @@ impl Work {
             debug_assert!(cv.iter().all(|&v| v != u32::MAX), "a curve vertex died");
         }
     }
+}
+
+/// The centroid of triangle `t` over positions `pos`.
+#[inline]
+fn centroid(pos: &[DVec3], t: &[u32; 3]) -> DVec3 {
+    (pos[t[0] as usize] + pos[t[1] as usize] + pos[t[2] as usize]) / 3.0
+}
+
+/// The closed surface components of triangles `tris` over vertices `pos`
+/// (those without junction vertices: no vertex of kind `Curve` or
+/// `Corner`): per triangle its component or [`NONE_COMPONENT`], per
+/// component a point of it.
+fn closed_components(
+    pos: &[DVec3],
+    kind: &[VertexKind],
+    tris: &[[u32; 3]],
+) -> (Vec<u32>, Vec<DVec3>) {
+    let n = pos.len();
+    let mut dsu = Dsu::new(n);
+    for t in tris {
+        dsu.union(t[0], t[1]);
+        dsu.union(t[0], t[2]);
+    }
+    let mut junction = vec![false; n];
+    for v in 0..n {
+        if matches!(kind[v], VertexKind::Curve(_) | VertexKind::Corner) {
+            junction[dsu.find(v as u32) as usize] = true;
+        }
+    }
+    let mut index = vec![NONE_COMPONENT; n];
+    let mut origin = Vec::new();
+    let of_triangle = tris
+        .iter()
+        .map(|t| {
+            let r = dsu.find(t[0]) as usize;
+            if junction[r] {
+                return NONE_COMPONENT;
+            }
+            if index[r] == NONE_COMPONENT {
+                index[r] = origin.len() as u32;
+                origin.push(pos[r]);
+            }
+            index[r]
+        })
+        .collect();
+    (of_triangle, origin)
 }
 
 /// Curve `cv` with its remeshed runs put in place.
@@ -864,7 +998,10 @@ fn splice(cv: &[u32], closed: bool, runs: Vec<RunResult>) -> Vec<u32> {
 
 #[cfg(test)]
 mod tests {
-    use super::{NEW, Outcome, RunResult, Work, by_size_largest_first, largest_first, splice};
+    use super::{
+        NEW, Outcome, OutcomeTriangle, RunResult, Work, by_size_largest_first, largest_first,
+        splice,
+    };
     use crate::remesh::network::VertexKind;
     use glam::DVec3;
 
@@ -902,16 +1039,15 @@ mod tests {
     #[test]
     fn a_vertex_made_and_removed_in_one_pass_is_not_kept() {
         let p = |x: f64, y: f64| DVec3::new(x, y, 0.0);
-        let mut work = Work {
-            pos: vec![p(0.0, 0.0), p(1.0, 0.0), p(0.0, 1.0)],
-            kind: vec![VertexKind::Interior; 3],
-            tris: vec![[0, 1, 2]],
-            patch: vec![0],
-            hint: vec![0],
-            kept: vec![true],
-            curves: Vec::new(),
-            closed: Vec::new(),
-        };
+        let mut work = Work::new(
+            vec![p(0.0, 0.0), p(1.0, 0.0), p(0.0, 1.0)],
+            vec![VertexKind::Interior; 3],
+            vec![[0, 1, 2]],
+            vec![0],
+            vec![0],
+            Vec::new(),
+            Vec::new(),
+        );
         let outcome = Outcome {
             stats: [0; 10],
             moved: Vec::new(),
@@ -921,10 +1057,20 @@ mod tests {
                 (p(0.25, 0.0), VertexKind::Interior, false),
             ],
             // the triangle split at the first made vertex
-            triangles: vec![([0, NEW, 2], 0, 0, false), ([NEW, 1, 2], 0, 0, false)],
+            triangles: [[0, NEW, 2], [NEW, 1, 2]]
+                .map(|vertices| OutcomeTriangle {
+                    vertices,
+                    patch: 0,
+                    hint: 0,
+                    kept: false,
+                    // (the component of the triangle they replace)
+                    component: 0,
+                    block: 0,
+                })
+                .into(),
             runs: Vec::new(),
         };
-        work.merge(&[0], &[0], vec![outcome]);
+        work.merge(&[0], vec![outcome]);
         assert_eq!(work.pos.len(), 4);
         assert_eq!(work.tris.len(), 2);
         assert!(work.check().is_ok(), "{:?}", work.check());
