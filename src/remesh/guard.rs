@@ -21,7 +21,6 @@ use glam::DVec3;
 
 use super::halfedge::{HalfedgeMesh, NONE};
 use super::isotropic::PatchState;
-use crate::geom::intersect::Box32;
 use crate::geom::predicates::triangles_cross;
 
 /// A vertex's identity: equal keys are the same vertex.
@@ -68,12 +67,6 @@ impl Tri {
                 vertex_key(m, p, v[2]),
             ],
         }
-    }
-
-    #[inline]
-    fn box32(&self) -> Box32 {
-        let (lo, hi) = self.bounds();
-        Box32::outward(lo, hi)
     }
 
     #[inline]
@@ -294,11 +287,79 @@ impl Level {
     }
 }
 
-/// What a scan reads of an entry, stored in its cell's bucket: its box (in
-/// `f32`, rounded outward) and its id.
+/// A box in the guard's 16-bit grid coordinates, rounded outward: what a
+/// scan compares before any exact test (16 bytes an item with the id, four
+/// to a cache line; the scans read about a hundred items each).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct QBox {
+    lo: [u16; 3],
+    hi: [u16; 3],
+}
+
+impl QBox {
+    const EMPTY: QBox = QBox {
+        lo: [0; 3],
+        hi: [0; 3],
+    };
+
+    #[inline]
+    fn overlaps(&self, o: &QBox) -> bool {
+        (0..3).all(|k| self.lo[k] <= o.hi[k] && o.lo[k] <= self.hi[k])
+    }
+}
+
+/// The frame of [`QBox`]es: coordinates `(x - lo) · inv`, floored for lower
+/// corners and raised for upper ones, clamped to 16 bits (a box beyond the
+/// frame lands on its border: still outward, only less selective).
+#[derive(Clone, Copy, Debug)]
+struct Quantizer {
+    lo: DVec3,
+    inv: f64,
+}
+
+impl Quantizer {
+    /// A frame over the box from `lo` spanning `ext`.
+    fn over(lo: DVec3, ext: DVec3) -> Self {
+        let span = ext.max_element().max(1e-9);
+        Quantizer {
+            lo,
+            inv: f64::from(u16::MAX - 2) / span,
+        }
+    }
+
+    #[inline]
+    fn qbox(&self, (lo, hi): (DVec3, DVec3)) -> QBox {
+        let top = f64::from(u16::MAX);
+        let a = (lo - self.lo) * self.inv;
+        let b = (hi - self.lo) * self.inv;
+        // (rounding in the products is far below one unit: floor and ceil
+        // keep the boxes outward; NaN gives the whole frame)
+        let down = |x: f64| {
+            if x > 0.0 {
+                x.floor().min(top) as u16
+            } else {
+                0
+            }
+        };
+        let up = |x: f64| {
+            if x < top {
+                x.ceil().max(0.0) as u16
+            } else {
+                u16::MAX
+            }
+        };
+        QBox {
+            lo: [down(a.x), down(a.y), down(a.z)],
+            hi: [up(b.x), up(b.y), up(b.z)],
+        }
+    }
+}
+
+/// What a scan reads of an entry, stored in its cell's bucket: its box and
+/// its id.
 #[derive(Clone, Copy)]
 struct Item {
-    b: Box32,
+    b: QBox,
     e: u32,
 }
 
@@ -324,7 +385,9 @@ pub(super) struct Guard {
     entry: Vec<Vec<u32>>,
     /// Per entry: its (patch, face), or ([`NONE`], [`NONE`]) for an obstacle.
     owner: Vec<(u32, u32)>,
-    made_boxes: Vec<Box32>,
+    made_boxes: Vec<QBox>,
+    /// The frame of the items' boxes.
+    quantizer: Quantizer,
     /// Entries a query passes over (the faces an operation replaces).
     skipped: Vec<u32>,
     /// New triangles must lie within this box (where the obstacles are complete).
@@ -391,6 +454,7 @@ impl Guard {
                 .collect(),
             owner: Vec::new(),
             made_boxes: Vec::new(),
+            quantizer: Quantizer::over(lo, ext),
             skipped: Vec::new(),
             trusted,
         };
@@ -410,13 +474,13 @@ impl Guard {
         // first the buckets' sizes, then each bucket's stretch in the order
         // of its cell (a bucket's room: its entries and a few more, so that
         // the first operations there need not move it)
-        let places: Vec<(usize, u32, Box32)> = g
+        let places: Vec<(usize, u32, QBox)> = g
             .tris
             .iter()
             .map(|t| {
                 let b = t.bounds();
                 let (level, c) = g.place_of_box(b);
-                (level, c, Box32::outward(b.0, b.1))
+                (level, c, g.quantizer.qbox(b))
             })
             .collect();
         for &(level, c, _) in &places {
@@ -435,7 +499,7 @@ impl Guard {
         g.pool.resize(
             start as usize,
             Item {
-                b: Box32::outward(DVec3::ZERO, DVec3::ZERO),
+                b: QBox::EMPTY,
                 e: NONE,
             },
         );
@@ -511,20 +575,20 @@ impl Guard {
             self.pool.resize(
                 start + cap as usize,
                 Item {
-                    b: Box32::outward(DVec3::ZERO, DVec3::ZERO),
+                    b: QBox::EMPTY,
                     e: NONE,
                 },
             );
             b.start = start as u32;
             b.cap = cap;
         }
-        self.append(e, level, c, t.box32());
+        self.append(e, level, c, self.quantizer.qbox(t.bounds()));
         self.tris[e as usize] = t;
     }
 
     /// Puts entry `e`, with box `b`, at the end of the bucket of cell `c`
     /// of `level`, which has room for it.
-    fn append(&mut self, e: u32, level: usize, c: u32, b: Box32) {
+    fn append(&mut self, e: u32, level: usize, c: u32, b: QBox) {
         let l = &mut self.levels[level];
         let bucket = &mut l.buckets[c as usize];
         debug_assert!(bucket.len < bucket.cap, "a bucket with room");
@@ -627,7 +691,7 @@ impl Guard {
         }
         let mut made_boxes = std::mem::take(&mut self.made_boxes);
         made_boxes.clear();
-        made_boxes.extend(made.iter().map(|t| t.box32()));
+        made_boxes.extend(made.iter().map(|t| self.quantizer.qbox(t.bounds())));
         let crossed = self.scan(made, &made_boxes, lo, hi, &skipped, fans);
         self.made_boxes = made_boxes;
         self.skipped = skipped;
@@ -650,7 +714,8 @@ impl Guard {
         {
             return Some(None);
         }
-        let e = self.scan(std::slice::from_ref(t), &[t.box32()], lo, hi, &[], fans)?;
+        let b = self.quantizer.qbox((lo, hi));
+        let e = self.scan(std::slice::from_ref(t), &[b], lo, hi, &[], fans)?;
         let (p, f) = self.owner[e as usize];
         Some((p != NONE).then_some((p, f)))
     }
@@ -660,13 +725,13 @@ impl Guard {
     fn scan(
         &self,
         made: &[Tri],
-        made_boxes: &[Box32],
+        made_boxes: &[QBox],
         lo: DVec3,
         hi: DVec3,
         skipped: &[u32],
         fans: Option<SimpleFans>,
     ) -> Option<u32> {
-        let query_box = Box32::outward(lo, hi);
+        let query_box = self.quantizer.qbox((lo, hi));
         for l in &self.levels {
             if l.count == 0 {
                 continue;
@@ -763,6 +828,65 @@ mod tests {
             tris.swap(0, 1);
             assert_eq!(is_simple_fan(&tris), simple);
         }
+    }
+
+    /// Quantized boxes hold the boxes they stand for, so that two boxes that
+    /// meet (touching included) meet quantized, in the frame, beyond it
+    /// (clamped) and at its corner (rounding in the products).
+    #[test]
+    fn quantized_boxes_are_outward() {
+        let mut rng = Rng(0x9b0c_5e5);
+        let (lo, ext) = (DVec3::new(-3.7, 10.1, 250.3), DVec3::new(180.0, 90.0, 3.0));
+        let q = Quantizer::over(lo, ext);
+        let back = |u: u16, k: usize| lo[k] + f64::from(u) / q.inv;
+        let (mut met, mut apart) = (0, 0);
+        for case in 0..50_000 {
+            let point = |rng: &mut Rng| {
+                // inside, around and beyond the frame, and on grid lines
+                let t = DVec3::new(rng.next(), rng.next(), rng.next()) * 1.4 - DVec3::splat(0.2);
+                let p = lo + t * ext.max_element();
+                if case % 5 == 0 {
+                    (p * 8.0).round() / 8.0
+                } else {
+                    p
+                }
+            };
+            let a = point(&mut rng);
+            let b = a + DVec3::new(rng.next(), rng.next(), rng.next())
+                * [0.0, 0.01, 1.0, 40.0][rng.below(4)];
+            let qa = q.qbox((a.min(b), a.max(b)));
+            for k in 0..3 {
+                let (l, h) = (a.min(b)[k], a.max(b)[k]);
+                assert!(
+                    qa.lo[k] == 0 || back(qa.lo[k], k) <= l,
+                    "{k}: {qa:?} {a} {b}"
+                );
+                assert!(
+                    qa.hi[k] == u16::MAX || back(qa.hi[k], k) >= h,
+                    "{k}: {qa:?} {a} {b}"
+                );
+            }
+            // a box touching the first along one axis, overlapping along the others
+            let axis = rng.below(3);
+            let mut c = a.min(b);
+            c[axis] = a.max(b)[axis];
+            let d = c + DVec3::new(rng.next(), rng.next(), rng.next());
+            assert!(
+                q.qbox((c, d)).overlaps(&qa),
+                "touching boxes meet quantized"
+            );
+            // and one well apart
+            let mut e = a.max(b) + DVec3::splat(1.0);
+            e[axis] = a.min(b)[axis];
+            if !q.qbox((e, e + DVec3::splat(0.5))).overlaps(&qa) {
+                apart += 1;
+            } else {
+                met += 1;
+            }
+        }
+        // the filter is selective, not only safe (boxes apart beyond the
+        // frame's border may meet there)
+        assert!(apart > 10 * met, "{apart} apart, {met} met");
     }
 
     /// Whatever the ring, a fan called simple has no two triangles that
