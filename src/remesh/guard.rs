@@ -835,7 +835,7 @@ mod tests {
     /// (clamped) and at its corner (rounding in the products).
     #[test]
     fn quantized_boxes_are_outward() {
-        let mut rng = Rng(0x9b0c_5e5);
+        let mut rng = Rng(0x09b0_c5e5);
         let (lo, ext) = (DVec3::new(-3.7, 10.1, 250.3), DVec3::new(180.0, 90.0, 3.0));
         let q = Quantizer::over(lo, ext);
         let back = |u: u16, k: usize| lo[k] + f64::from(u) / q.inv;
