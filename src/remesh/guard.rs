@@ -303,8 +303,8 @@ impl QBox {
         hi: [0; 3],
     };
 
-    /// Whether the boxes meet (all six comparisons made, without branches:
-    /// a scan meets overlapping and apart items in no predictable order).
+    /// Whether the boxes meet (scans use [`QueryBox::meets`] on x86_64).
+    #[cfg(any(test, not(target_arch = "x86_64")))]
     #[inline]
     fn overlaps(&self, o: &QBox) -> bool {
         (self.lo[0] <= o.hi[0])
@@ -452,7 +452,7 @@ pub(super) struct Guard {
     entry: Vec<Vec<u32>>,
     /// Per entry: its (patch, face), or ([`NONE`], [`NONE`]) for an obstacle.
     owner: Vec<(u32, u32)>,
-    made_boxes: Vec<QBox>,
+    made_boxes: Vec<QueryBox>,
     /// The frame of the items' boxes.
     quantizer: Quantizer,
     /// Entries a query passes over (the faces an operation replaces).
@@ -758,7 +758,10 @@ impl Guard {
         }
         let mut made_boxes = std::mem::take(&mut self.made_boxes);
         made_boxes.clear();
-        made_boxes.extend(made.iter().map(|t| self.quantizer.qbox(t.bounds())));
+        made_boxes.extend(
+            made.iter()
+                .map(|t| QueryBox::new(self.quantizer.qbox(t.bounds()))),
+        );
         let crossed = self.scan(made, &made_boxes, lo, hi, &skipped, fans);
         self.made_boxes = made_boxes;
         self.skipped = skipped;
@@ -781,7 +784,7 @@ impl Guard {
         {
             return Some(None);
         }
-        let b = self.quantizer.qbox((lo, hi));
+        let b = QueryBox::new(self.quantizer.qbox((lo, hi)));
         let e = self.scan(std::slice::from_ref(t), &[b], lo, hi, &[], fans)?;
         let (p, f) = self.owner[e as usize];
         Some((p != NONE).then_some((p, f)))
@@ -792,7 +795,7 @@ impl Guard {
     fn scan(
         &self,
         made: &[Tri],
-        made_boxes: &[QBox],
+        made_boxes: &[QueryBox],
         lo: DVec3,
         hi: DVec3,
         skipped: &[u32],
@@ -833,7 +836,7 @@ impl Guard {
         &self,
         item: &Item,
         made: &[Tri],
-        made_boxes: &[QBox],
+        made_boxes: &[QueryBox],
         skipped: &[u32],
         fans: Option<SimpleFans>,
     ) -> Option<u32> {
@@ -844,10 +847,9 @@ impl Guard {
         if fans.is_some_and(|f| f.hold(self.owner[item.e as usize].0, &t.k)) {
             return None;
         }
-        let tb = item.b;
         made.iter()
             .zip(made_boxes)
-            .any(|(s, sb)| sb.overlaps(&tb) && triangles_cross(&s.p, &s.k, &t.p, &t.k))
+            .any(|(s, sb)| sb.meets(item) && triangles_cross(&s.p, &s.k, &t.p, &t.k))
             .then_some(item.e)
     }
 }
