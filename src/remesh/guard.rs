@@ -817,7 +817,9 @@ impl Guard {
                             &self.pool[bucket.start as usize..(bucket.start + bucket.len) as usize];
                         for item in items {
                             if query_box.meets(item) {
-                                if let Some(e) = self.crossing_item(item, made, made_boxes, skipped, fans) {
+                                if let Some(e) =
+                                    self.crossing_item(item, made, made_boxes, skipped, fans)
+                                {
                                     return Some(e);
                                 }
                             }
