@@ -307,12 +307,7 @@ impl QBox {
     #[cfg(any(test, not(target_arch = "x86_64")))]
     #[inline]
     fn overlaps(&self, o: &QBox) -> bool {
-        (self.lo[0] <= o.hi[0])
-            & (o.lo[0] <= self.hi[0])
-            & (self.lo[1] <= o.hi[1])
-            & (o.lo[1] <= self.hi[1])
-            & (self.lo[2] <= o.hi[2])
-            & (o.lo[2] <= self.hi[2])
+        (0..3).all(|k| self.lo[k] <= o.hi[k] && o.lo[k] <= self.hi[k])
     }
 }
 
