@@ -1,4 +1,5 @@
-//! Run-time CPU dispatch of the hot loops.
+//! Run-time CPU dispatch of the hot loops (x86_64 only: elsewhere the plain
+//! bodies run).
 //!
 //! septa builds for baseline x86-64, where `u64::count_ones` is a dozen
 //! instructions instead of one `popcnt`, `trailing_zeros` needs a zero check
@@ -24,16 +25,9 @@ pub(crate) fn fast() -> bool {
 }
 
 fn detect() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("popcnt")
-            && std::is_x86_feature_detected!("bmi1")
-            && std::is_x86_feature_detected!("bmi2")
-            && std::is_x86_feature_detected!("lzcnt")
-            && std::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+    std::is_x86_feature_detected!("popcnt")
+        && std::is_x86_feature_detected!("bmi1")
+        && std::is_x86_feature_detected!("bmi2")
+        && std::is_x86_feature_detected!("lzcnt")
+        && std::is_x86_feature_detected!("avx2")
 }

@@ -30,7 +30,9 @@ use std::mem::MaybeUninit;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::{Scalar, cpu};
+use super::Scalar;
+#[cfg(target_arch = "x86_64")]
+use super::cpu;
 use crate::volume::Dims;
 
 /// Displaced support points stay this fraction of a voxel away from the voxel

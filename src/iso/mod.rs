@@ -40,6 +40,7 @@
 //! assert_eq!(s.stats.cycles_by_length[3], 8);
 //! ```
 
+#[cfg(target_arch = "x86_64")]
 mod cpu;
 mod grid;
 mod stats;

@@ -18,10 +18,12 @@ use std::mem::MaybeUninit;
 use glam::DVec3;
 use rayon::prelude::*;
 
+#[cfg(target_arch = "x86_64")]
+use super::cpu;
 use super::grid::{Activity, Faces, Rows, WORDS_PER_TASK, funnel};
 use super::stats::TypeCounts;
 use super::table::{CellEntry, Table};
-use super::{Mode, Scalar, cpu};
+use super::{Mode, Scalar};
 use crate::extract::Decompose;
 use crate::geom::predicates::is_degenerate;
 use crate::star::{edge_star, face_axis, face_octants};
