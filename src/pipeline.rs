@@ -79,6 +79,10 @@ pub struct PipelineOptions {
     /// label (or the selection's `others`) before anything else, as if the
     /// volume had only these (see [`LabelSelection::apply`]).
     pub labels: Option<LabelSelection>,
+    /// Merge the flat stretches of each patch in the extraction (see
+    /// [`ExtractOptions::merge_flat`]); only where it is kept as is
+    /// (remeshing smooths the extraction, which needs its every point).
+    pub merge_flat: bool,
 }
 
 /// A stage of the pipeline.
@@ -180,6 +184,13 @@ pub fn run(
     let params = remesh_params(options, &config.remesh, v);
     if let Some(p) = &params {
         check_remesh_scale(p, v)?;
+        if options.merge_flat {
+            return Err(Error::invalid(
+                "merging flat stretches (--merge-flat) applies to the extraction written as is: \
+                 remeshing smooths the extraction, which needs every point of it; add --no-remesh \
+                 (config: [remesh] enabled = false) or leave merging off",
+            ));
+        }
     }
     check_label_values(options, v)?;
     let work = crate::estimate::estimate(v, subdivision_for(&resolved) as u64);
@@ -219,6 +230,7 @@ pub fn run(
     let extract_options = ExtractOptions {
         surface: options.surface,
         decompose: options.decompose,
+        merge_flat: options.merge_flat,
     };
     timer = Timer::start(Stage::Extract, "extracting interface patches", progress);
     let extracted = extract(
@@ -563,6 +575,7 @@ fn manifest(p: ManifestParts<'_>) -> Manifest {
         parameters: ManifestParameters {
             surface: format!("{:?}", p.extract_options.surface).to_lowercase(),
             decompose: format!("{:?}", p.extract_options.decompose),
+            merge_flat: p.extract_options.merge_flat,
             subdivision: f.subdivision,
             remesh: p.remeshed.map(|r| r.params),
             outside: f.outside,

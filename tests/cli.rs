@@ -1611,3 +1611,45 @@ fn no_remesh_peak_memory_per_triangle_is_bounded_on_pure_noise() {
         );
     }
 }
+
+/// `--merge-flat`: the same surface in fewer triangles, said so in the
+/// manifest; refused with remeshing (which needs every point).
+#[test]
+fn extract_merge_flat_writes_fewer_triangles_and_needs_no_remesh() {
+    use septa::io::mesh_ply::read_ply;
+    let dir = tempfile::tempdir().unwrap();
+    let (dense, merged) = (dir.path().join("dense"), dir.path().join("merged"));
+    extract_heart(&dense, &[]);
+    extract_heart(&merged, &["--merge-flat"]);
+    let (md, mm) = (manifest(&dense), manifest(&merged));
+    assert_eq!(md["parameters"]["merge_flat"], false);
+    assert_eq!(mm["parameters"]["merge_flat"], true);
+    assert_eq!(mm["validation"]["passed"], true, "{}", mm["validation"]);
+    let (td, tm) = (
+        md["triangles"].as_u64().unwrap(),
+        mm["triangles"].as_u64().unwrap(),
+    );
+    assert!(tm < td * 95 / 100, "{tm} triangles merged, {td} not");
+    let (a, b) = (
+        read_ply(&dense.join("interfaces.ply")).unwrap().mesh,
+        read_ply(&merged.join("interfaces.ply")).unwrap().mesh,
+    );
+    assert_eq!(b.triangle_count() as u64, tm);
+    for l in 1..a.labels.len() as u16 {
+        let (va, vb) = (
+            a.signed_volume(&a.label_surface(l)),
+            b.signed_volume(&b.label_surface(l)),
+        );
+        assert!(
+            (va - vb).abs() <= 1e-4 * va.abs(),
+            "label {l}: {va} vs {vb}"
+        );
+    }
+    let data = data("heart_phantom_48.nii.gz");
+    let out = dir.path().join("remeshed");
+    fails(
+        septa(["extract", p(&data), "-o", p(&out), "--merge-flat"]),
+        &["--merge-flat", "--no-remesh"],
+    );
+    assert!(!out.exists());
+}

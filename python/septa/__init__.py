@@ -322,6 +322,7 @@ def extract(
     surface: str = "vesta",
     decompose: str = "l",
     intersections: bool = False,
+    merge_flat: bool = False,
     max_memory: Optional[int] = None,
     progress: Optional[ProgressCallback] = None,
     select: Optional[Sequence[Union[int, str]]] = None,
@@ -342,6 +343,9 @@ def extract(
         target_edge: largest edge length of the remeshed mesh in mm (default: twice
             the mean spacing, or the config's).
         remesh: ``False`` keeps the extraction as it is (default: the config's, else True).
+        merge_flat: with ``remesh=False``: merge the flat stretches of each patch
+            (staircase terraces) into large polygons, the same surface in fewer, longer
+            triangles (as ``--merge-flat``); leave it off to smooth the mesh elsewhere.
         space: coordinates of the returned vertices, ``"ras"`` (nibabel) or ``"lps"``
             (DICOM, ITK, 3D Slicer).
         progress: called as ``progress(event, stage, message)`` with event
@@ -409,6 +413,7 @@ def extract(
         surface=surface,
         decompose=decompose,
         intersections=intersections,
+        merge_flat=merge_flat,
         max_memory=max_memory,
         progress=progress,
         **_config_args(config),

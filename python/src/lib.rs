@@ -245,6 +245,7 @@ impl Extraction {
     min_edge=None, smooth_iterations=None, max_displacement=None, iterations=None,
     surface="vesta", decompose="l", intersections=false, max_memory=None, source_file=None,
     progress=None, label_names=None, label_names_path=None, labels=None, others=None,
+    merge_flat=false,
 ))]
 #[allow(clippy::too_many_arguments)] // one keyword argument per option
 fn extract(
@@ -269,6 +270,7 @@ fn extract(
     label_names_path: Option<PathBuf>,
     labels: Option<Vec<String>>,
     others: Option<String>,
+    merge_flat: bool,
 ) -> PyResult<Extraction> {
     let surface = match surface {
         "vesta" => septa::extract::Surface::Vesta,
@@ -297,6 +299,7 @@ fn extract(
             iterations,
         },
         intersections,
+        merge_flat,
         max_memory,
         source_file,
         labels: labels.map(|keep| LabelSelection {

@@ -103,6 +103,12 @@ pub struct ExtractArgs {
     /// Write the extraction as it is: no smoothing, no remeshing (config: `[remesh] enabled = false`).
     #[arg(long)]
     pub no_remesh: bool,
+    /// With --no-remesh: merge the flat stretches of each patch (staircase terraces, sides of
+    /// fattened blocks) into large polygons. The very same surface in fewer, longer triangles
+    /// (13 % fewer on a brain tissue map); leave it off if the mesh is to be smoothed elsewhere,
+    /// which needs a point on every voxel face.
+    #[arg(long)]
+    pub merge_flat: bool,
     /// Largest edge length of the remeshed patches, in mm: the target wherever the structures
     /// leave room for it (default: twice the mean voxel spacing). Edges get shorter where label
     /// regions are thinner (a sizing field from the volume), down to --min-edge.
@@ -217,6 +223,7 @@ fn pipeline_options(args: &ExtractArgs) -> PipelineOptions {
             iterations: args.remesh_iterations,
         },
         intersections: args.intersections,
+        merge_flat: args.merge_flat,
         max_memory: args.max_memory,
         source_file: Some(args.input.volume.clone()),
         labels: (!args.labels.is_empty()).then(|| LabelSelection {

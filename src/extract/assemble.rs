@@ -12,19 +12,21 @@ use rayon::prelude::*;
 
 use super::PackedPart;
 use super::coarse_faces::CoarseFaces;
-use super::dissolve;
 use super::lattice::Lattice;
 use super::vesta::{TAG_CENTROID, TAG_KEY, TAG_MASK};
+use super::{dissolve, planar};
 use crate::mesh::{InterfaceMesh, JunctionCurve, LabelInfo, Patch};
 use crate::volume::{Geometry, LabelId};
 
-/// Builds the mesh from the parts.
+/// Builds the mesh from the parts; with `merge_flat`, flat stretches of
+/// each patch are merged (see [`planar`]).
 pub(crate) fn assemble(
     mut parts: Vec<PackedPart>,
     faces: Option<&CoarseFaces>,
     lat: Lattice,
     labels: Vec<LabelInfo>,
     geometry: Geometry,
+    merge_flat: bool,
 ) -> InterfaceMesh {
     let n_face = faces.map_or(0, |f| f.count()) as usize;
     // Lattice keys referenced anywhere (each part names its own once).
@@ -148,6 +150,9 @@ pub(crate) fn assemble(
 
     let mut junctions = chain_junctions(total, chords);
     dissolve::dissolve_straight(&vertices, &mut triangles, &mut triangle_patch, &junctions);
+    if merge_flat {
+        planar::dissolve_flat(&vertices, &mut triangles, &mut triangle_patch, &junctions);
+    }
     triangles.shrink_to_fit();
     triangle_patch.shrink_to_fit();
     let kept = compact_unused(total, &mut triangles, &mut junctions);

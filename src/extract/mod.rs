@@ -35,6 +35,7 @@ mod assemble;
 mod coarse_faces;
 mod dissolve;
 mod lattice;
+mod planar;
 mod polygon;
 mod primal;
 mod vesta;
@@ -76,6 +77,11 @@ pub enum Surface {
 pub struct ExtractOptions {
     pub surface: Surface,
     pub decompose: Decompose,
+    /// Merge the flat stretches of each patch (staircase terraces, sides of
+    /// fattened blocks) into large polygons: the very same surface in fewer,
+    /// longer triangles. Off by default: smoothing, ours or another tool's,
+    /// needs a point on every boundary face.
+    pub merge_flat: bool,
 }
 
 /// A piece of output being produced by one task: triangles over tagged vertex
@@ -232,11 +238,19 @@ pub fn extract(
                 lat,
                 labels,
                 geometry,
+                opts.merge_flat,
             ))
         }
         Surface::Faces => {
             let parts = primal::primal_parts(rv, lat);
-            Ok(assemble::assemble(parts, None, lat, labels, geometry))
+            Ok(assemble::assemble(
+                parts,
+                None,
+                lat,
+                labels,
+                geometry,
+                opts.merge_flat,
+            ))
         }
     }
 }

@@ -69,6 +69,9 @@ pub struct ManifestParameters {
     pub surface: String,
     /// `L` or `H`.
     pub decompose: String,
+    /// Whether flat stretches of the extraction were merged into large
+    /// polygons (`--merge-flat`).
+    pub merge_flat: bool,
     /// Subvoxels per voxel edge used to fatten critical elements (5 or 7).
     pub subdivision: usize,
     /// The remeshing parameters, `null` when the extraction was kept as is.

@@ -44,26 +44,22 @@ pub fn run(
     (pre, mesh, report)
 }
 
-/// All four surface/decomposition combinations.
-pub fn all_options() -> [ExtractOptions; 4] {
+/// All four surface/decomposition combinations, and both surfaces with
+/// their flat stretches merged.
+pub fn all_options() -> [ExtractOptions; 6] {
     use septa::extract::{Decompose, Surface};
+    let with = |surface, decompose, merge_flat| ExtractOptions {
+        surface,
+        decompose,
+        merge_flat,
+    };
     [
-        ExtractOptions {
-            surface: Surface::Vesta,
-            decompose: Decompose::L,
-        },
-        ExtractOptions {
-            surface: Surface::Vesta,
-            decompose: Decompose::H,
-        },
-        ExtractOptions {
-            surface: Surface::Faces,
-            decompose: Decompose::L,
-        },
-        ExtractOptions {
-            surface: Surface::Faces,
-            decompose: Decompose::H,
-        },
+        with(Surface::Vesta, Decompose::L, false),
+        with(Surface::Vesta, Decompose::H, false),
+        with(Surface::Faces, Decompose::L, false),
+        with(Surface::Faces, Decompose::H, false),
+        with(Surface::Vesta, Decompose::L, true),
+        with(Surface::Faces, Decompose::L, true),
     ]
 }
 

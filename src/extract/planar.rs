@@ -1,0 +1,551 @@
+//! Dissolving vertices inside flat stretches of one patch.
+//!
+//! Where the labels' boundary is flat over several faces (a terrace of a
+//! staircase, the side of a fattened block), the VESTA construction puts a
+//! vertex at every face's support point, though the surface there is one
+//! plane. A vertex `v` off the junction curves whose triangles all lie in one
+//! plane, face the same way and belong to one patch is the centre of a flat
+//! disk: its triangles tile the polygon of its ring. Replacing them by a
+//! triangulation of that polygon (ear by ear, the shortest diagonal first, so
+//! no triangle is flat and no vertex lies on a new edge) leaves the surface
+//! the very same point set, so every invariant of the extraction (closed,
+//! manifold, oriented label surfaces, no crossings, shared junction curves)
+//! holds after it as before. Flatness, orientation and every ear are decided
+//! exactly on the integer lattice coordinates.
+//!
+//! Vertices are dissolved in rounds: in each, every candidate's replacement
+//! is found in parallel on the mesh as the round found it, and the
+//! replacements of vertices no two of which are neighbours (taken in id
+//! order) are applied; their neighbours are tried again in the next round.
+//! The result does not depend on the thread count.
+
+use rayon::prelude::*;
+
+use super::dissolve::LatticeCoords;
+use crate::mesh::JunctionCurve;
+
+/// A dead triangle.
+const NONE: u32 = u32::MAX;
+
+/// Buffers of [`plan_flat`], reused from vertex to vertex.
+#[derive(Default)]
+struct Scratch {
+    star: Vec<u32>,
+    edges: Vec<(u32, u32)>,
+    ring: Vec<u32>,
+    pts: Vec<[i64; 2]>,
+    left: Vec<usize>,
+}
+
+/// A vertex's replacement: the triangles of its star (ids) and the
+/// triangulation of its ring that takes their place.
+struct Plan {
+    star: Vec<u32>,
+    made: Vec<[u32; 3]>,
+}
+
+/// Dissolves every vertex at the centre of a flat disk of one patch (see the
+/// module docs); `tris` and `patch` keep only the live triangles. Returns the
+/// number of vertices dissolved.
+pub(crate) fn dissolve_flat<L: LatticeCoords + Sync + ?Sized>(
+    lattice: &L,
+    tris: &mut Vec<[u32; 3]>,
+    patch: &mut Vec<u32>,
+    curves: &[JunctionCurve],
+) -> usize {
+    let n = lattice.len();
+    let mut on_curve = vec![false; n];
+    for c in curves {
+        for &v in &c.vertices {
+            on_curve[v as usize] = true;
+        }
+    }
+    // looked up many times each: once, in parallel
+    let coords: Vec<Option<[i32; 3]>> = (0..n as u32)
+        .into_par_iter()
+        .map(|v| lattice.at(v))
+        .collect();
+    let mut candidates: Vec<u32> = (0..n as u32)
+        .filter(|&v| !on_curve[v as usize] && coords[v as usize].is_some())
+        .collect();
+    let mut rows = Rows::new(n, tris);
+    // per vertex: the round in which it became a neighbour of a dissolved one
+    let mut blocked = vec![0u32; n];
+    let mut dissolved = 0;
+    let mut round = 0u32;
+    while !candidates.is_empty() {
+        round += 1;
+        let plans: Vec<(u32, Plan)> = candidates
+            .par_iter()
+            .map_init(Scratch::default, |scratch, &v| {
+                let mut star = std::mem::take(&mut scratch.star);
+                star.clear();
+                star.extend(rows.live(v));
+                let plan = plan_flat(&coords, tris, patch, &rows, v, &star, scratch);
+                scratch.star = star;
+                plan.map(|p| (v, p))
+            })
+            .flatten()
+            .collect();
+        candidates.clear();
+        let mut applied = 0;
+        for (v, plan) in plans {
+            if blocked[v as usize] == round {
+                candidates.push(v);
+                continue;
+            }
+            for &t in &plan.star {
+                for x in tris[t as usize] {
+                    blocked[x as usize] = round;
+                    rows.remove(x, t);
+                }
+            }
+            let (kept, gone) = plan.star.split_at(plan.made.len());
+            for (&t, &m) in kept.iter().zip(&plan.made) {
+                tris[t as usize] = m;
+                for x in m {
+                    rows.add(x, t);
+                }
+            }
+            for &t in gone {
+                tris[t as usize] = [NONE; 3];
+            }
+            applied += 1;
+        }
+        dissolved += applied;
+        if applied == 0 {
+            break;
+        }
+    }
+    let mut k = 0;
+    for i in 0..tris.len() {
+        if tris[i][0] != NONE {
+            tris[k] = tris[i];
+            patch[k] = patch[i];
+            k += 1;
+        }
+    }
+    tris.truncate(k);
+    patch.truncate(k);
+    dissolved
+}
+
+/// The live triangles around each vertex, as rows with room to grow: a
+/// dissolution takes two triangles from each vertex of the ring and may give
+/// it more (the ears cut at it).
+struct Rows {
+    start: Vec<u32>,
+    list: Vec<u32>,
+    /// What did not fit in a row.
+    spill: hashbrown::HashMap<u32, Vec<u32>>,
+}
+
+impl Rows {
+    /// Free slots per row besides the vertex's triangles.
+    const ROOM: u32 = 2;
+
+    /// The rows of the live triangles of `tris`.
+    fn new(n: usize, tris: &[[u32; 3]]) -> Self {
+        let mut start = vec![0u32; n + 1];
+        for t in tris.iter().filter(|t| t[0] != NONE) {
+            for &v in t {
+                start[v as usize + 1] += 1;
+            }
+        }
+        for v in 0..n {
+            start[v + 1] += start[v] + Self::ROOM;
+        }
+        let mut fill = start.clone();
+        let mut list = vec![NONE; start[n] as usize];
+        for (i, t) in tris.iter().enumerate().filter(|(_, t)| t[0] != NONE) {
+            for &v in t {
+                list[fill[v as usize] as usize] = i as u32;
+                fill[v as usize] += 1;
+            }
+        }
+        Rows {
+            start,
+            list,
+            spill: hashbrown::HashMap::new(),
+        }
+    }
+
+    fn row(&self, v: u32) -> &[u32] {
+        &self.list[self.start[v as usize] as usize..self.start[v as usize + 1] as usize]
+    }
+
+    /// The live triangles around `v`.
+    fn live(&self, v: u32) -> impl Iterator<Item = u32> + '_ {
+        let spilled = match self.spill.is_empty() {
+            true => &[][..],
+            false => self.spill.get(&v).map_or(&[][..], |s| s.as_slice()),
+        };
+        self.row(v)
+            .iter()
+            .chain(spilled)
+            .copied()
+            .filter(|&t| t != NONE)
+    }
+
+    fn remove(&mut self, v: u32, t: u32) {
+        let r = self.start[v as usize] as usize..self.start[v as usize + 1] as usize;
+        let spilled = self
+            .spill
+            .get_mut(&v)
+            .map_or(&mut [][..], |s| s.as_mut_slice());
+        if let Some(slot) = self.list[r].iter_mut().chain(spilled).find(|x| **x == t) {
+            *slot = NONE;
+        }
+    }
+
+    /// Adds `t` to `v`'s row (to its spill where the row is full).
+    fn add(&mut self, v: u32, t: u32) {
+        let r = self.start[v as usize] as usize..self.start[v as usize + 1] as usize;
+        match self.list[r].iter_mut().find(|x| **x == NONE) {
+            Some(slot) => *slot = t,
+            None => self.spill.entry(v).or_default().push(t),
+        }
+    }
+}
+
+/// The replacement of vertex `v`'s triangles (`row`, ids into `tris`) by a
+/// triangulation of its ring, if they form a flat disk of one patch.
+#[allow(clippy::too_many_arguments)]
+fn plan_flat(
+    coords: &[Option<[i32; 3]>],
+    tris: &[[u32; 3]],
+    patch: &[u32],
+    rows: &Rows,
+    v: u32,
+    row: &[u32],
+    scratch: &mut Scratch,
+) -> Option<Plan> {
+    let k = row.len();
+    if k < 3
+        || row
+            .iter()
+            .any(|&t| patch[t as usize] != patch[row[0] as usize])
+    {
+        return None;
+    }
+    let pv = coords[v as usize]?;
+    let rel = |x: u32| -> Option<[i64; 3]> {
+        let p = coords[x as usize]?;
+        Some([0, 1, 2].map(|i| (p[i] - pv[i]) as i64))
+    };
+    // every triangle (v, a, b) in one plane, facing one way (checked before
+    // anything is gathered: most vertices are not in a flat disk)
+    let mut normal = [0i64; 3];
+    for &t in row {
+        let [_, a, b] = rotate_to(tris[t as usize], v);
+        let n = cross(rel(a)?, rel(b)?);
+        if n == [0; 3] || (normal != [0; 3] && (cross(n, normal) != [0; 3] || dot(n, normal) <= 0))
+        {
+            return None;
+        }
+        normal = n;
+    }
+    let Scratch {
+        edges,
+        ring,
+        pts,
+        left,
+        ..
+    } = scratch;
+    edges.clear();
+    edges.extend(row.iter().map(|&t| {
+        let [_, a, b] = rotate_to(tris[t as usize], v);
+        (a, b)
+    }));
+    ring_of(edges, ring)?;
+    // in-plane coordinates, turned so that the triangles are counter-clockwise
+    let axis = (0..3).max_by_key(|&i| normal[i].abs()).unwrap_or(2);
+    let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
+    let flip = normal[axis] < 0;
+    pts.clear();
+    pts.extend(ring.iter().map(|&x| {
+        let p = rel(x).expect("checked above");
+        if flip { [p[j], p[i]] } else { [p[i], p[j]] }
+    }));
+    // the ring winds once around v (upward crossings of the ray +x from v)
+    let crossings = (0..k)
+        .filter(|&m| pts[m][1] < 0 && pts[(m + 1) % k][1] >= 0)
+        .count();
+    if crossings != 1 {
+        return None;
+    }
+    let made = clip_ears(ring, pts, left, |p, q| {
+        // a diagonal that is an edge already (outside the star) would be
+        // shared by more than two triangles: checked, not assumed
+        rows.live(p)
+            .any(|t| !row.contains(&t) && tris[t as usize].contains(&q))
+    })?;
+    Some(Plan {
+        star: row.to_vec(),
+        made,
+    })
+}
+
+/// The ring of a star from its outer edges `(a, b)`, into `ring`: one cycle
+/// through every edge, in their direction; `None` if they make no single cycle.
+fn ring_of(edges: &mut [(u32, u32)], ring: &mut Vec<u32>) -> Option<()> {
+    edges.sort_unstable();
+    if edges.windows(2).any(|w| w[0].0 == w[1].0) {
+        return None;
+    }
+    let next = |a: u32| -> Option<u32> {
+        let i = edges.binary_search_by_key(&a, |e| e.0).ok()?;
+        Some(edges[i].1)
+    };
+    let first = edges[0].0;
+    ring.clear();
+    let mut x = first;
+    for _ in 0..edges.len() {
+        ring.push(x);
+        x = next(x)?;
+    }
+    (x == first).then_some(())
+}
+
+/// A triangulation of the counter-clockwise simple polygon `pts` (vertex ids
+/// `ring`): ears cut one by one, each the one with the shortest diagonal
+/// (the first in ring order among equals) whose tip is strictly convex and
+/// whose triangle holds no other vertex of the polygon (nor on its sides).
+/// `None` if no ear can be cut, or the one to cut has a diagonal `taken`
+/// (which an embedded surface never has: checked, not assumed).
+fn clip_ears(
+    ring: &[u32],
+    pts: &[[i64; 2]],
+    left: &mut Vec<usize>,
+    taken: impl Fn(u32, u32) -> bool,
+) -> Option<Vec<[u32; 3]>> {
+    left.clear();
+    left.extend(0..ring.len());
+    let mut made = Vec::with_capacity(ring.len() - 2);
+    while left.len() > 3 {
+        let m = left.len();
+        let mut best: Option<(i64, usize)> = None;
+        for e in 0..m {
+            let (p, x, q) = (left[(e + m - 1) % m], left[e], left[(e + 1) % m]);
+            if orient(pts[p], pts[x], pts[q]) <= 0 {
+                continue;
+            }
+            let d = [pts[q][0] - pts[p][0], pts[q][1] - pts[p][1]];
+            let len = d[0] * d[0] + d[1] * d[1];
+            if best.is_some_and(|(b, _)| b <= len) {
+                continue;
+            }
+            let holds_other = left.iter().any(|&o| {
+                o != p && o != x && o != q && in_closed_triangle(pts[o], pts[p], pts[x], pts[q])
+            });
+            if !holds_other {
+                best = Some((len, e));
+            }
+        }
+        let (_, e) = best?;
+        let (p, x, q) = (left[(e + m - 1) % m], left[e], left[(e + 1) % m]);
+        if taken(ring[p], ring[q]) {
+            return None;
+        }
+        made.push([ring[p], ring[x], ring[q]]);
+        left.remove(e);
+    }
+    let [p, x, q] = [left[0], left[1], left[2]];
+    if orient(pts[p], pts[x], pts[q]) <= 0 {
+        return None;
+    }
+    made.push([ring[p], ring[x], ring[q]]);
+    Some(made)
+}
+
+/// Twice the signed area of (a, b, c): positive when counter-clockwise.
+#[inline]
+fn orient(a: [i64; 2], b: [i64; 2], c: [i64; 2]) -> i64 {
+    (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+}
+
+/// Whether `o` lies in the closed counter-clockwise triangle (a, b, c).
+#[inline]
+fn in_closed_triangle(o: [i64; 2], a: [i64; 2], b: [i64; 2], c: [i64; 2]) -> bool {
+    orient(a, b, o) >= 0 && orient(b, c, o) >= 0 && orient(c, a, o) >= 0
+}
+
+#[inline]
+fn cross(a: [i64; 3], b: [i64; 3]) -> [i64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+#[inline]
+fn dot(a: [i64; 3], b: [i64; 3]) -> i64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// `t` rotated so that it starts at `v` (orientation kept).
+#[inline]
+fn rotate_to(t: [u32; 3], v: u32) -> [u32; 3] {
+    if t[0] == v {
+        t
+    } else if t[1] == v {
+        [t[1], t[2], t[0]]
+    } else {
+        [t[2], t[0], t[1]]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An n × n grid of lattice points in the plane z = 0 (x fastest), two
+    /// counter-clockwise triangles per square, all in patch 0; the border
+    /// points on a closed junction curve (so they stay).
+    type Grid = (Vec<Option<[i32; 3]>>, Vec<[u32; 3]>, Vec<JunctionCurve>);
+
+    fn grid(n: u32) -> Grid {
+        let at = |x: u32, y: u32| x + n * y;
+        let lattice = (0..n * n)
+            .map(|i| Some([(i % n) as i32 * 2, (i / n) as i32 * 2, 0]))
+            .collect();
+        let mut tris = Vec::new();
+        for y in 0..n - 1 {
+            for x in 0..n - 1 {
+                tris.push([at(x, y), at(x + 1, y), at(x + 1, y + 1)]);
+                tris.push([at(x, y), at(x + 1, y + 1), at(x, y + 1)]);
+            }
+        }
+        let mut border: Vec<u32> = (0..n - 1).map(|x| at(x, 0)).collect();
+        border.extend((0..n - 1).map(|y| at(n - 1, y)));
+        border.extend((1..n).rev().map(|x| at(x, n - 1)));
+        border.extend((1..n).rev().map(|y| at(0, y)));
+        let curve = JunctionCurve {
+            vertices: border,
+            closed: true,
+            labels: vec![0, 1, 2],
+        };
+        (lattice, tris, vec![curve])
+    }
+
+    /// Twice the signed area (z component) of each triangle.
+    fn areas(lattice: &[Option<[i32; 3]>], tris: &[[u32; 3]]) -> Vec<i64> {
+        tris.iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| lattice[v as usize].unwrap().map(i64::from));
+                (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_flat_grid_keeps_only_its_border() {
+        for n in [3, 4, 6] {
+            let (lattice, mut tris, curves) = grid(n);
+            let before: i64 = areas(&lattice, &tris).iter().sum();
+            let mut patch = vec![0; tris.len()];
+            let gone = dissolve_flat(lattice.as_slice(), &mut tris, &mut patch, &curves);
+            assert_eq!(gone, ((n - 2) * (n - 2)) as usize, "n = {n}");
+            // the border polygon's 4 (n - 1) points, in 4 (n - 1) - 2 triangles
+            assert_eq!(tris.len(), (4 * (n - 1) - 2) as usize);
+            let a = areas(&lattice, &tris);
+            assert!(a.iter().all(|&x| x > 0), "a flat or flipped triangle");
+            assert_eq!(a.iter().sum::<i64>(), before, "the same area");
+            let interior = |v: u32| v % n > 0 && v % n < n - 1 && v / n > 0 && v / n < n - 1;
+            assert!(tris.iter().flatten().all(|&v| !interior(v)));
+        }
+    }
+
+    #[test]
+    fn bent_mixed_or_curve_stars_stay() {
+        let (lattice, tris0, curves) = grid(3);
+        let centre = 4;
+        // the centre raised: its triangles are in four planes
+        let mut bent = lattice.clone();
+        bent[centre] = Some([2, 2, 1]);
+        // one triangle in another patch
+        let mut mixed = vec![0; tris0.len()];
+        mixed[3] = 1;
+        // the centre on a junction curve
+        let mut on_curve = curves.clone();
+        on_curve.push(JunctionCurve {
+            vertices: vec![1, 4, 7],
+            closed: false,
+            labels: vec![0, 1, 2],
+        });
+        for (lat, patch, curves) in [
+            (&bent, vec![0; tris0.len()], &curves),
+            (&lattice, mixed, &curves),
+            (&lattice, vec![0; tris0.len()], &on_curve),
+        ] {
+            let mut tris = tris0.clone();
+            let mut patch = patch;
+            assert_eq!(
+                dissolve_flat(lat.as_slice(), &mut tris, &mut patch, curves),
+                0
+            );
+            assert_eq!(tris, tris0);
+        }
+    }
+
+    #[test]
+    fn a_star_folded_onto_itself_stays() {
+        // the centre's ring winds twice around it: each triangle is fine,
+        // together they cover the disk twice
+        // once around at radius 100, then once more at radius 50, turned
+        // by 45 degrees
+        let mut lattice = vec![Some([0, 0, 0])];
+        for (deg, r) in [
+            (0, 100),
+            (90, 100),
+            (180, 100),
+            (270, 100),
+            (315, 50),
+            (45, 50),
+            (135, 50),
+            (225, 50),
+        ] {
+            let a = (deg as f64).to_radians();
+            lattice.push(Some([
+                (r as f64 * a.cos()).round() as i32,
+                (r as f64 * a.sin()).round() as i32,
+                0,
+            ]));
+        }
+        let k = 8;
+        let tris0: Vec<[u32; 3]> = (0..k).map(|i| [0, 1 + i, 1 + (i + 1) % k]).collect();
+        let mut tris = tris0.clone();
+        let mut patch = vec![0; k as usize];
+        assert_eq!(
+            dissolve_flat(lattice.as_slice(), &mut tris, &mut patch, &[]),
+            0
+        );
+        assert_eq!(tris, tris0);
+    }
+
+    #[test]
+    fn ears_skip_points_on_their_diagonal() {
+        // a square with a point in the middle of each side: the corners'
+        // diagonals pass no other point, the cut leaves no flat triangle
+        let ring = [0u32, 1, 2, 3, 4, 5, 6, 7];
+        let pts = [
+            [0, 0],
+            [1, 0],
+            [2, 0],
+            [2, 1],
+            [2, 2],
+            [1, 2],
+            [0, 2],
+            [0, 1],
+        ];
+        let made = clip_ears(&ring, &pts, &mut Vec::new(), |_, _| false).unwrap();
+        assert_eq!(made.len(), 6);
+        for t in &made {
+            let [a, b, c] = t.map(|v| pts[v as usize]);
+            assert!(orient(a, b, c) > 0, "{t:?}");
+        }
+        // a diagonal already taken everywhere: no ear
+        assert!(clip_ears(&ring, &pts, &mut Vec::new(), |_, _| true).is_none());
+    }
+}
