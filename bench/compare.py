@@ -16,6 +16,8 @@ the heart phantom with `septa phantom`, and for every volume, in the same run:
 * septa: `septa extract VOL -o OUT --force -q`, best of N; the figure compared
   is preprocess + extract from OUT/manifest.json (`timings_s`), the whole
   command's wall time (read, preprocess, extract, validate, write) is shown too;
+  and once `septa extract VOL --no-remesh --merge-flat` (the same surface with
+  its flat stretches merged: fewer triangles);
 * vtkSurfaceNets3D (smoothing off, triangle output, every label value present
   except the background) and vtkDiscreteFlyingEdges3D (every label value present
   except the background), on the same voxels, 2 threads (vtkSMPTools STDThread),
@@ -319,10 +321,10 @@ def septa_check(exe: Path, ply: Path) -> dict:
     return out
 
 
-def septa_extract(exe: Path, vol: Path, out: Path) -> dict:
+def septa_extract(exe: Path, vol: Path, out: Path, extra: tuple[str, ...] = ()) -> dict:
     """One `septa extract` run: its wall time and manifest figures."""
     t = time.perf_counter()
-    r = run([str(exe), "extract", str(vol), "-o", str(out), "--force", "-q"])
+    r = run([str(exe), "extract", str(vol), "-o", str(out), "--force", "-q", *extra])
     wall = time.perf_counter() - t
     if r.returncode != 0:
         raise SystemExit(f"septa extract {vol} failed: {r.stderr}")
@@ -504,6 +506,15 @@ def compare_one(exe, vtk, nib, np, vol: Path, name: str, work: Path, repeats: in
                  triangles=s["triangles"], check=chk, extra=s["timings"])]
     print(f"septa: {best['septa']:.3f} s (preprocess+extract), command {best['wall']:.3f} s; "
           f"{s['vertices']:,} vertices, {s['triangles']:,} triangles", flush=True)
+    # the extraction as written with --no-remesh --merge-flat: the same surface,
+    # flat stretches merged (once: its size is the figure, the time is shown too)
+    merged = septa_extract(exe, vol, out, ("--no-remesh", "--merge-flat"))
+    chk = septa_check(exe, out / "interfaces.ply")
+    shutil.rmtree(out, ignore_errors=True)
+    rows.append(dict(tool="septa --no-remesh --merge-flat", volume=name, dims=dims, load=load,
+                     time=merged["time"], wall=merged["wall"], vertices=merged["vertices"],
+                     triangles=merged["triangles"], check=chk, extra=merged["timings"]))
+    print(f"septa --merge-flat: {merged['time']:.3f} s, {merged['triangles']:,} triangles", flush=True)
 
     for key, tool, faces in [
         ("sn", "vtkSurfaceNets3D (triangles)", surface_nets_faces),

@@ -185,10 +185,12 @@ pub fn run(
     if let Some(p) = &params {
         check_remesh_scale(p, v)?;
         if options.merge_flat {
-            return Err(Error::invalid(
-                "merging flat stretches (--merge-flat) applies to the extraction written as is: \
-                 remeshing smooths the extraction, which needs every point of it; add --no-remesh \
-                 (config: [remesh] enabled = false) or leave merging off",
+            return Err(Error::parameter(
+                "merge_flat",
+                true,
+                "merging flat stretches (--merge-flat) applies to the extraction written as is, \
+                 and remeshing smooths the extraction, which needs every point of it: add \
+                 --no-remesh (config: [remesh] enabled = false) or leave merging off",
             ));
         }
     }

@@ -512,3 +512,17 @@ def test_hyper_slices_are_closed_and_frames_are_vesta():
         septa.hyper(frames[..., 0], 50.0)
     with pytest.raises(septa.SeptaError, match="time step"):
         septa.hyper(frames, 50.0, time_step=0.0)
+
+
+def test_merge_flat_is_the_same_surface_in_fewer_triangles():
+    dense = septa.extract(nested_cubes(), remesh=False)
+    merged = septa.extract(nested_cubes(), remesh=False, merge_flat=True)
+    assert len(merged.triangles) < 0.8 * len(dense.triangles)
+    assert merged.manifest["parameters"]["merge_flat"] is True
+    for label in (1, 2, 3):
+        s = merged.label_surface(label)
+        assert set(edge_uses(s.triangles).values()) == {2}, label
+        assert signed_volume(s) == pytest.approx(signed_volume(dense.label_surface(label)), rel=1e-9)
+    # remeshing smooths the extraction, which needs every point of it
+    with pytest.raises(septa.ParameterError, match="--no-remesh"):
+        septa.extract(nested_cubes(), merge_flat=True)

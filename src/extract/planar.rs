@@ -13,11 +13,11 @@
 //! holds after it as before. Flatness, orientation and every ear are decided
 //! exactly on the integer lattice coordinates.
 //!
-//! Vertices are dissolved in rounds: in each, every candidate's replacement
-//! is found in parallel on the mesh as the round found it, and the
-//! replacements of vertices no two of which are neighbours (taken in id
-//! order) are applied; their neighbours are tried again in the next round.
-//! The result does not depend on the thread count.
+//! Which stars are flat is found for every vertex at once, in parallel:
+//! dissolving a vertex replaces triangles by others in the same plane, so no
+//! star becomes flat that was not. The flat ones are then dissolved one by
+//! one in id order, each on the mesh as the earlier ones left it, so the
+//! result does not depend on the thread count.
 
 use rayon::prelude::*;
 
@@ -30,18 +30,13 @@ const NONE: u32 = u32::MAX;
 /// Buffers of [`plan_flat`], reused from vertex to vertex.
 #[derive(Default)]
 struct Scratch {
+    /// The star's triangles (ids), and what takes their place.
     star: Vec<u32>,
+    made: Vec<[u32; 3]>,
     edges: Vec<(u32, u32)>,
     ring: Vec<u32>,
     pts: Vec<[i64; 2]>,
     left: Vec<usize>,
-}
-
-/// A vertex's replacement: the triangles of its star (ids) and the
-/// triangulation of its ring that takes their place.
-struct Plan {
-    star: Vec<u32>,
-    made: Vec<[u32; 3]>,
 }
 
 /// Dissolves every vertex at the centre of a flat disk of one patch (see the
@@ -65,57 +60,42 @@ pub(crate) fn dissolve_flat<L: LatticeCoords + Sync + ?Sized>(
         .into_par_iter()
         .map(|v| lattice.at(v))
         .collect();
-    let mut candidates: Vec<u32> = (0..n as u32)
+    let candidates: Vec<u32> = (0..n as u32)
         .filter(|&v| !on_curve[v as usize] && coords[v as usize].is_some())
         .collect();
     let mut rows = Rows::new(n, tris);
-    // per vertex: the round in which it became a neighbour of a dissolved one
-    let mut blocked = vec![0u32; n];
+    // which stars are flat, in parallel; dissolving a neighbour replaces
+    // triangles by others in the same planes, so no other star becomes flat
+    let flat: Vec<u32> = candidates
+        .par_iter()
+        .copied()
+        .filter(|&v| flat_normal(&coords, tris, patch, &rows, v).is_some())
+        .collect();
+    drop(candidates);
+    // then one by one in id order, each on the mesh as the earlier ones left it
+    let mut scratch = Scratch::default();
     let mut dissolved = 0;
-    let mut round = 0u32;
-    while !candidates.is_empty() {
-        round += 1;
-        let plans: Vec<(u32, Plan)> = candidates
-            .par_iter()
-            .map_init(Scratch::default, |scratch, &v| {
-                let mut star = std::mem::take(&mut scratch.star);
-                star.clear();
-                star.extend(rows.live(v));
-                let plan = plan_flat(&coords, tris, patch, &rows, v, &star, scratch);
-                scratch.star = star;
-                plan.map(|p| (v, p))
-            })
-            .flatten()
-            .collect();
-        candidates.clear();
-        let mut applied = 0;
-        for (v, plan) in plans {
-            if blocked[v as usize] == round {
-                candidates.push(v);
-                continue;
-            }
-            for &t in &plan.star {
-                for x in tris[t as usize] {
-                    blocked[x as usize] = round;
-                    rows.remove(x, t);
-                }
-            }
-            let (kept, gone) = plan.star.split_at(plan.made.len());
-            for (&t, &m) in kept.iter().zip(&plan.made) {
-                tris[t as usize] = m;
-                for x in m {
-                    rows.add(x, t);
-                }
-            }
-            for &t in gone {
-                tris[t as usize] = [NONE; 3];
-            }
-            applied += 1;
+    for v in flat {
+        if plan_flat(&coords, tris, patch, &rows, v, &mut scratch).is_none() {
+            continue;
         }
-        dissolved += applied;
-        if applied == 0 {
-            break;
+        let (star, made) = (&scratch.star, &scratch.made);
+        for &t in star {
+            for x in tris[t as usize] {
+                rows.remove(x, t);
+            }
         }
+        let (kept, gone) = star.split_at(made.len());
+        for (&t, &m) in kept.iter().zip(made.iter()) {
+            tris[t as usize] = m;
+            for x in m {
+                rows.add(x, t);
+            }
+        }
+        for &t in gone {
+            tris[t as usize] = [NONE; 3];
+        }
+        dissolved += 1;
     }
     let mut k = 0;
     for i in 0..tris.len() {
@@ -208,35 +188,27 @@ impl Rows {
     }
 }
 
-/// The replacement of vertex `v`'s triangles (`row`, ids into `tris`) by a
-/// triangulation of its ring, if they form a flat disk of one patch.
-#[allow(clippy::too_many_arguments)]
-fn plan_flat(
+/// The normal of the plane of `v`'s triangles, if they all lie in it, face
+/// the same way and belong to one patch.
+fn flat_normal(
     coords: &[Option<[i32; 3]>],
     tris: &[[u32; 3]],
     patch: &[u32],
     rows: &Rows,
     v: u32,
-    row: &[u32],
-    scratch: &mut Scratch,
-) -> Option<Plan> {
-    let k = row.len();
-    if k < 3
-        || row
-            .iter()
-            .any(|&t| patch[t as usize] != patch[row[0] as usize])
-    {
-        return None;
-    }
+) -> Option<[i64; 3]> {
     let pv = coords[v as usize]?;
     let rel = |x: u32| -> Option<[i64; 3]> {
         let p = coords[x as usize]?;
         Some([0, 1, 2].map(|i| (p[i] - pv[i]) as i64))
     };
-    // every triangle (v, a, b) in one plane, facing one way (checked before
-    // anything is gathered: most vertices are not in a flat disk)
     let mut normal = [0i64; 3];
-    for &t in row {
+    let mut first_patch = None;
+    let mut count = 0;
+    for t in rows.live(v) {
+        if *first_patch.get_or_insert(patch[t as usize]) != patch[t as usize] {
+            return None;
+        }
         let [_, a, b] = rotate_to(tris[t as usize], v);
         let n = cross(rel(a)?, rel(b)?);
         if n == [0; 3] || (normal != [0; 3] && (cross(n, normal) != [0; 3] || dot(n, normal) <= 0))
@@ -244,28 +216,50 @@ fn plan_flat(
             return None;
         }
         normal = n;
+        count += 1;
     }
+    (count >= 3).then_some(normal)
+}
+
+/// The replacement of vertex `v`'s triangles by a triangulation of its ring,
+/// if they form a flat disk of one patch: the triangles to replace in
+/// `scratch.star`, what takes their place in `scratch.made`.
+fn plan_flat(
+    coords: &[Option<[i32; 3]>],
+    tris: &[[u32; 3]],
+    patch: &[u32],
+    rows: &Rows,
+    v: u32,
+    scratch: &mut Scratch,
+) -> Option<()> {
+    let normal = flat_normal(coords, tris, patch, rows, v)?;
     let Scratch {
+        star,
+        made,
         edges,
         ring,
         pts,
         left,
-        ..
     } = scratch;
+    star.clear();
+    star.extend(rows.live(v));
+    let k = star.len();
     edges.clear();
-    edges.extend(row.iter().map(|&t| {
+    edges.extend(star.iter().map(|&t| {
         let [_, a, b] = rotate_to(tris[t as usize], v);
         (a, b)
     }));
     ring_of(edges, ring)?;
     // in-plane coordinates, turned so that the triangles are counter-clockwise
+    let pv = coords[v as usize]?;
     let axis = (0..3).max_by_key(|&i| normal[i].abs()).unwrap_or(2);
     let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
     let flip = normal[axis] < 0;
     pts.clear();
     pts.extend(ring.iter().map(|&x| {
-        let p = rel(x).expect("checked above");
-        if flip { [p[j], p[i]] } else { [p[i], p[j]] }
+        let p = coords[x as usize].expect("checked with the normal");
+        let d = [0, 1, 2].map(|c| (p[c] - pv[c]) as i64);
+        if flip { [d[j], d[i]] } else { [d[i], d[j]] }
     }));
     // the ring winds once around v (upward crossings of the ray +x from v)
     let crossings = (0..k)
@@ -274,15 +268,12 @@ fn plan_flat(
     if crossings != 1 {
         return None;
     }
-    let made = clip_ears(ring, pts, left, |p, q| {
+    let star = &*star;
+    clip_ears(ring, pts, left, made, |p, q| {
         // a diagonal that is an edge already (outside the star) would be
         // shared by more than two triangles: checked, not assumed
         rows.live(p)
-            .any(|t| !row.contains(&t) && tris[t as usize].contains(&q))
-    })?;
-    Some(Plan {
-        star: row.to_vec(),
-        made,
+            .any(|t| !star.contains(&t) && tris[t as usize].contains(&q))
     })
 }
 
@@ -308,7 +299,7 @@ fn ring_of(edges: &mut [(u32, u32)], ring: &mut Vec<u32>) -> Option<()> {
 }
 
 /// A triangulation of the counter-clockwise simple polygon `pts` (vertex ids
-/// `ring`): ears cut one by one, each the one with the shortest diagonal
+/// `ring`), into `made`: ears cut one by one, each the one with the shortest diagonal
 /// (the first in ring order among equals) whose tip is strictly convex and
 /// whose triangle holds no other vertex of the polygon (nor on its sides).
 /// `None` if no ear can be cut, or the one to cut has a diagonal `taken`
@@ -317,11 +308,12 @@ fn clip_ears(
     ring: &[u32],
     pts: &[[i64; 2]],
     left: &mut Vec<usize>,
+    made: &mut Vec<[u32; 3]>,
     taken: impl Fn(u32, u32) -> bool,
-) -> Option<Vec<[u32; 3]>> {
+) -> Option<()> {
     left.clear();
     left.extend(0..ring.len());
-    let mut made = Vec::with_capacity(ring.len() - 2);
+    made.clear();
     while left.len() > 3 {
         let m = left.len();
         let mut best: Option<(i64, usize)> = None;
@@ -355,7 +347,7 @@ fn clip_ears(
         return None;
     }
     made.push([ring[p], ring[x], ring[q]]);
-    Some(made)
+    Some(())
 }
 
 /// Twice the signed area of (a, b, c): positive when counter-clockwise.
@@ -539,13 +531,14 @@ mod tests {
             [0, 2],
             [0, 1],
         ];
-        let made = clip_ears(&ring, &pts, &mut Vec::new(), |_, _| false).unwrap();
+        let mut made = Vec::new();
+        clip_ears(&ring, &pts, &mut Vec::new(), &mut made, |_, _| false).unwrap();
         assert_eq!(made.len(), 6);
         for t in &made {
             let [a, b, c] = t.map(|v| pts[v as usize]);
             assert!(orient(a, b, c) > 0, "{t:?}");
         }
         // a diagonal already taken everywhere: no ear
-        assert!(clip_ears(&ring, &pts, &mut Vec::new(), |_, _| true).is_none());
+        assert!(clip_ears(&ring, &pts, &mut Vec::new(), &mut made, |_, _| true).is_none());
     }
 }
