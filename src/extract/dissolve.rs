@@ -115,6 +115,13 @@ pub(crate) fn dissolve_straight<L: LatticeCoords + Sync + ?Sized>(
             }
         }
     }
+    retain_live(tris, patch);
+    dead
+}
+
+/// Drops the dead triangles (first corner `NONE`) and their patch entries,
+/// keeping the order of the others.
+pub(crate) fn retain_live(tris: &mut Vec<[u32; 3]>, patch: &mut Vec<u32>) {
     let mut k = 0;
     for i in 0..tris.len() {
         if tris[i][0] != NONE {
@@ -125,7 +132,6 @@ pub(crate) fn dissolve_straight<L: LatticeCoords + Sync + ?Sized>(
     }
     tris.truncate(k);
     patch.truncate(k);
-    dead
 }
 
 /// Per vertex: whether the planes of its triangles (as the mesh is now)
@@ -312,7 +318,7 @@ fn lines_through<L: LatticeCoords + ?Sized>(
 
 /// `t` rotated so that it starts at `v` (orientation kept).
 #[inline]
-fn rotate_to(t: [u32; 3], v: u32) -> [u32; 3] {
+pub(crate) fn rotate_to(t: [u32; 3], v: u32) -> [u32; 3] {
     if t[0] == v {
         t
     } else if t[1] == v {

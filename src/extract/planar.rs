@@ -21,7 +21,7 @@
 
 use rayon::prelude::*;
 
-use super::dissolve::LatticeCoords;
+use super::dissolve::{LatticeCoords, retain_live, rotate_to};
 use crate::mesh::JunctionCurve;
 
 /// A dead triangle.
@@ -97,16 +97,7 @@ pub(crate) fn dissolve_flat<L: LatticeCoords + Sync + ?Sized>(
         }
         dissolved += 1;
     }
-    let mut k = 0;
-    for i in 0..tris.len() {
-        if tris[i][0] != NONE {
-            tris[k] = tris[i];
-            patch[k] = patch[i];
-            k += 1;
-        }
-    }
-    tris.truncate(k);
-    patch.truncate(k);
+    retain_live(tris, patch);
     dissolved
 }
 
@@ -198,10 +189,7 @@ fn flat_normal(
     v: u32,
 ) -> Option<[i64; 3]> {
     let pv = coords[v as usize]?;
-    let rel = |x: u32| -> Option<[i64; 3]> {
-        let p = coords[x as usize]?;
-        Some([0, 1, 2].map(|i| (p[i] - pv[i]) as i64))
-    };
+    let rel = |x: u32| Some(offset(coords[x as usize]?, pv));
     let mut normal = [0i64; 3];
     let mut first_patch = None;
     let mut count = 0;
@@ -256,11 +244,10 @@ fn plan_flat(
     let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
     let flip = normal[axis] < 0;
     pts.clear();
-    pts.extend(ring.iter().map(|&x| {
-        let p = coords[x as usize].expect("checked with the normal");
-        let d = [0, 1, 2].map(|c| (p[c] - pv[c]) as i64);
-        if flip { [d[j], d[i]] } else { [d[i], d[j]] }
-    }));
+    for &x in ring.iter() {
+        let d = offset(coords[x as usize]?, pv);
+        pts.push(if flip { [d[j], d[i]] } else { [d[i], d[j]] });
+    }
     // the ring winds once around v (upward crossings of the ray +x from v)
     let crossings = (0..k)
         .filter(|&m| pts[m][1] < 0 && pts[(m + 1) % k][1] >= 0)
@@ -350,6 +337,12 @@ fn clip_ears(
     Some(())
 }
 
+/// `p - origin`, widened for exact products.
+#[inline]
+fn offset(p: [i32; 3], origin: [i32; 3]) -> [i64; 3] {
+    [0, 1, 2].map(|i| (p[i] - origin[i]) as i64)
+}
+
 /// Twice the signed area of (a, b, c): positive when counter-clockwise.
 #[inline]
 fn orient(a: [i64; 2], b: [i64; 2], c: [i64; 2]) -> i64 {
@@ -374,18 +367,6 @@ fn cross(a: [i64; 3], b: [i64; 3]) -> [i64; 3] {
 #[inline]
 fn dot(a: [i64; 3], b: [i64; 3]) -> i64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-/// `t` rotated so that it starts at `v` (orientation kept).
-#[inline]
-fn rotate_to(t: [u32; 3], v: u32) -> [u32; 3] {
-    if t[0] == v {
-        t
-    } else if t[1] == v {
-        [t[1], t[2], t[0]]
-    } else {
-        [t[2], t[0], t[1]]
-    }
 }
 
 #[cfg(test)]
