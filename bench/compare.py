@@ -5,6 +5,7 @@ Run from anywhere (Python >= 3.10; it was written for 3.11):
 
     python3 bench/compare.py                      # 256^3 and 512^3, clean and --noise 0.01
     python3 bench/compare.py --sizes 256 --repeats 1
+    python3 bench/compare.py --sizes '' --volumes ../shared/data/mni152_2009a_tissue3.nii.gz
     python3 bench/compare.py --iso                # septa iso (cold and warm) vs scikit-image and VTK flying edges
     python3 bench/compare.py --remesh             # septa extract (remeshed) vs VTK surface nets + pymeshlab
 
@@ -351,6 +352,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="256,512", help="phantom sizes (default 256,512)")
     ap.add_argument("--noise", default="0,0.01", help="phantom noise levels (default 0,0.01)")
+    ap.add_argument("--volumes", default="",
+                    help="also these label volumes (NIfTI, comma-separated), e.g. "
+                    "../shared/data/mni152_2009a_tissue3.nii.gz; --sizes '' compares only them")
     ap.add_argument("--repeats", type=int, default=3, help="best of N (default 3)")
     ap.add_argument("--threads", type=int, default=2, help="VTK threads (default 2)")
     ap.add_argument("--out", type=Path, default=HERE / "RESULTS.md", help="markdown output")
@@ -407,7 +411,8 @@ def main() -> None:
     exe = args.septa_bin.resolve() if args.septa_bin else build_septa()
     vtk, smp = setup_vtk(args.threads)
     notes = check_vtk_conventions(vtk)
-    sizes = [int(s) for s in args.sizes.split(",")]
+    sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
+    volumes = [Path(v).resolve() for v in args.volumes.split(",") if v.strip()]
     noises = [n.strip() for n in args.noise.split(",")]
     work = args.workdir or Path(tempfile.mkdtemp(prefix="septa-compare-"))
     work.mkdir(parents=True, exist_ok=True)
@@ -439,6 +444,9 @@ def main() -> None:
                         raise SystemExit(r.stderr)
                 rows += compare_one(exe, vtk, nib, np, vol, name, work, args.repeats)
                 (work / f"{name}.nii.gz").unlink()  # 512^3 meshes and volumes add up
+        for vol in volumes:
+            name = vol.name.removesuffix(".gz").removesuffix(".nii")
+            rows += compare_one(exe, vtk, nib, np, vol, name, work, args.repeats)
     finally:
         if args.workdir is None:
             shutil.rmtree(work, ignore_errors=True)
