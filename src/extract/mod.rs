@@ -13,6 +13,10 @@
 //!
 //! [`Decompose`] chooses how N-cycles with N > 3 become triangles.
 //!
+//! Vertices inside straight segments are always dissolved (`dissolve.rs`);
+//! with [`ExtractOptions::merge_flat`], so are the vertices inside flat
+//! stretches of a patch (`planar.rs`): the same point set in fewer triangles.
+//!
 //! Work is split into z slabs of grid vertices and into groups of refined voxels,
 //! processed in parallel; parts are merged in a fixed order, so the output is
 //! identical for any number of threads.
