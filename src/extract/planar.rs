@@ -199,8 +199,7 @@ fn flat_normal(
         }
         let [_, a, b] = rotate_to(tris[t as usize], v);
         let n = cross(rel(a)?, rel(b)?);
-        if n == [0; 3] || (normal != [0; 3] && (cross(n, normal) != [0; 3] || dot(n, normal) <= 0))
-        {
+        if n == [0; 3] || (normal != [0; 3] && !same_direction(n, normal)) {
             return None;
         }
         normal = n;
@@ -364,9 +363,18 @@ fn cross(a: [i64; 3], b: [i64; 3]) -> [i64; 3] {
     ]
 }
 
+/// Whether two normals point the same way. Lattice coordinates have 20
+/// bits, so a normal's components have up to 43 and products of two normals
+/// need 128 bits.
 #[inline]
-fn dot(a: [i64; 3], b: [i64; 3]) -> i64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+fn same_direction(a: [i64; 3], b: [i64; 3]) -> bool {
+    let [a, b] = [a, b].map(|v| v.map(i128::from));
+    let cross = [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ];
+    cross == [0; 3] && a[0] * b[0] + a[1] * b[1] + a[2] * b[2] > 0
 }
 
 #[cfg(test)]
@@ -495,6 +503,21 @@ mod tests {
             0
         );
         assert_eq!(tris, tris0);
+    }
+
+    #[test]
+    fn normals_compare_exactly_at_any_size() {
+        // in 64 bits the cross product's 2^64 would wrap to 0: "parallel"
+        assert!(!same_direction([1 << 32, 0, 0], [1, 1 << 32, 0]));
+        assert!(!same_direction(
+            [1 << 42, 1 << 42, 3],
+            [1 << 42, 1 << 42, 4]
+        ));
+        assert!(same_direction([3 << 40, 5 << 40, 7], [3 << 40, 5 << 40, 7]));
+        assert!(!same_direction(
+            [3 << 40, 5 << 40, 7],
+            [-3 << 40, -5 << 40, -7]
+        ));
     }
 
     #[test]
