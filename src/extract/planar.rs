@@ -66,17 +66,29 @@ pub(crate) fn dissolve_flat<L: LatticeCoords + Sync + ?Sized>(
     let mut rows = Rows::new(n, tris);
     // which stars are flat, in parallel; dissolving a neighbour replaces
     // triangles by others in the same planes, so no other star becomes flat
+    let mesh = Mesh {
+        coords: &coords,
+        tris,
+        patch,
+        rows: &rows,
+    };
     let flat: Vec<u32> = candidates
         .par_iter()
         .copied()
-        .filter(|&v| flat_normal(&coords, tris, patch, &rows, v).is_some())
+        .filter(|&v| mesh.flat_normal(v).is_some())
         .collect();
     drop(candidates);
     // then one by one in id order, each on the mesh as the earlier ones left it
     let mut scratch = Scratch::default();
     let mut dissolved = 0;
     for v in flat {
-        if plan_flat(&coords, tris, patch, &rows, v, &mut scratch).is_none() {
+        let mesh = Mesh {
+            coords: &coords,
+            tris,
+            patch,
+            rows: &rows,
+        };
+        if mesh.plan_flat(v, &mut scratch).is_none() {
             continue;
         }
         let (star, made) = (&scratch.star, &scratch.made);
@@ -179,88 +191,95 @@ impl Rows {
     }
 }
 
-/// The normal of the plane of `v`'s triangles, if they all lie in it, face
-/// the same way and belong to one patch.
-fn flat_normal(
-    coords: &[Option<[i32; 3]>],
-    tris: &[[u32; 3]],
-    patch: &[u32],
-    rows: &Rows,
-    v: u32,
-) -> Option<[i64; 3]> {
-    let pv = coords[v as usize]?;
-    let rel = |x: u32| Some(offset(coords[x as usize]?, pv));
-    let mut normal = [0i64; 3];
-    let mut first_patch = None;
-    let mut count = 0;
-    for t in rows.live(v) {
-        if *first_patch.get_or_insert(patch[t as usize]) != patch[t as usize] {
-            return None;
-        }
-        let [_, a, b] = rotate_to(tris[t as usize], v);
-        let n = cross(rel(a)?, rel(b)?);
-        if n == [0; 3] || (normal != [0; 3] && !same_direction(n, normal)) {
-            return None;
-        }
-        normal = n;
-        count += 1;
-    }
-    (count >= 3).then_some(normal)
+/// The mesh as the dissolution reads it: lattice coordinates, triangles,
+/// their patches and the rows of triangles around each vertex.
+struct Mesh<'a> {
+    coords: &'a [Option<[i32; 3]>],
+    tris: &'a [[u32; 3]],
+    patch: &'a [u32],
+    rows: &'a Rows,
 }
 
-/// The replacement of vertex `v`'s triangles by a triangulation of its ring,
-/// if they form a flat disk of one patch: the triangles to replace in
-/// `scratch.star`, what takes their place in `scratch.made`.
-fn plan_flat(
-    coords: &[Option<[i32; 3]>],
-    tris: &[[u32; 3]],
-    patch: &[u32],
-    rows: &Rows,
-    v: u32,
-    scratch: &mut Scratch,
-) -> Option<()> {
-    let normal = flat_normal(coords, tris, patch, rows, v)?;
-    let Scratch {
-        star,
-        made,
-        edges,
-        ring,
-        pts,
-        left,
-    } = scratch;
-    star.clear();
-    star.extend(rows.live(v));
-    let k = star.len();
-    edges.clear();
-    edges.extend(star.iter().map(|&t| {
-        let [_, a, b] = rotate_to(tris[t as usize], v);
-        (a, b)
-    }));
-    ring_of(edges, ring)?;
-    // in-plane coordinates, turned so that the triangles are counter-clockwise
-    let pv = coords[v as usize]?;
-    let axis = (0..3).max_by_key(|&i| normal[i].abs()).unwrap_or(2);
-    let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
-    let flip = normal[axis] < 0;
-    pts.clear();
-    for &x in ring.iter() {
-        let d = offset(coords[x as usize]?, pv);
-        pts.push(if flip { [d[j], d[i]] } else { [d[i], d[j]] });
+impl Mesh<'_> {
+    /// The normal of the plane of `v`'s triangles, if they all lie in it, face
+    /// the same way and belong to one patch.
+    fn flat_normal(&self, v: u32) -> Option<[i64; 3]> {
+        let Mesh {
+            coords,
+            tris,
+            patch,
+            rows,
+        } = *self;
+        let pv = coords[v as usize]?;
+        let rel = |x: u32| Some(offset(coords[x as usize]?, pv));
+        let mut normal = [0i64; 3];
+        let mut first_patch = None;
+        let mut count = 0;
+        for t in rows.live(v) {
+            if *first_patch.get_or_insert(patch[t as usize]) != patch[t as usize] {
+                return None;
+            }
+            let [_, a, b] = rotate_to(tris[t as usize], v);
+            let n = cross(rel(a)?, rel(b)?);
+            if n == [0; 3] || (normal != [0; 3] && !same_direction(n, normal)) {
+                return None;
+            }
+            normal = n;
+            count += 1;
+        }
+        (count >= 3).then_some(normal)
     }
-    // the ring winds once around v (upward crossings of the ray +x from v)
-    let crossings = (0..k)
-        .filter(|&m| pts[m][1] < 0 && pts[(m + 1) % k][1] >= 0)
-        .count();
-    if crossings != 1 {
-        return None;
+
+    /// The replacement of vertex `v`'s triangles by a triangulation of its ring,
+    /// if they form a flat disk of one patch: the triangles to replace in
+    /// `scratch.star`, what takes their place in `scratch.made`.
+    fn plan_flat(&self, v: u32, scratch: &mut Scratch) -> Option<()> {
+        let normal = self.flat_normal(v)?;
+        let Mesh {
+            coords, tris, rows, ..
+        } = *self;
+        let Scratch {
+            star,
+            made,
+            edges,
+            ring,
+            pts,
+            left,
+        } = scratch;
+        star.clear();
+        star.extend(rows.live(v));
+        let k = star.len();
+        edges.clear();
+        edges.extend(star.iter().map(|&t| {
+            let [_, a, b] = rotate_to(tris[t as usize], v);
+            (a, b)
+        }));
+        ring_of(edges, ring)?;
+        // in-plane coordinates, turned so that the triangles are counter-clockwise
+        let pv = coords[v as usize]?;
+        let axis = (0..3).max_by_key(|&i| normal[i].abs()).unwrap_or(2);
+        let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
+        let flip = normal[axis] < 0;
+        pts.clear();
+        for &x in ring.iter() {
+            let d = offset(coords[x as usize]?, pv);
+            pts.push(if flip { [d[j], d[i]] } else { [d[i], d[j]] });
+        }
+        // the ring winds once around v (upward crossings of the ray +x from v)
+        let crossings = (0..k)
+            .filter(|&m| pts[m][1] < 0 && pts[(m + 1) % k][1] >= 0)
+            .count();
+        if crossings != 1 {
+            return None;
+        }
+        let star = &*star;
+        clip_ears(ring, pts, left, made, |p, q| {
+            // a diagonal that is an edge already (outside the star) would be
+            // shared by more than two triangles: checked, not assumed
+            rows.live(p)
+                .any(|t| !star.contains(&t) && tris[t as usize].contains(&q))
+        })
     }
-    let star = &*star;
-    clip_ears(ring, pts, left, made, |p, q| {
-        // a diagonal that is an edge already (outside the star) would be
-        // shared by more than two triangles: checked, not assumed
-        rows.live(p)
-            .any(|t| !star.contains(&t) && tris[t as usize].contains(&q))
-    })
 }
 
 /// The ring of a star from its outer edges `(a, b)`, into `ring`: one cycle
