@@ -336,17 +336,18 @@ impl Quantizer {
         let a = (lo - self.lo) * self.inv;
         let b = (hi - self.lo) * self.inv;
         // (rounding in the products is far below one unit: floor and ceil
-        // keep the boxes outward; NaN gives the whole frame)
-        let down = |x: f64| {
-            if x > 0.0 {
-                x.floor().min(top) as u16
-            } else {
-                0
-            }
-        };
+        // keep the boxes outward; NaN gives the whole frame. Both by casts,
+        // which truncate and saturate: on x86_64 without SSE4.1, `floor` and
+        // `ceil` are calls into libm, and these run for every box)
+        let down = |x: f64| if x > 0.0 { x as u16 } else { 0 };
         let up = |x: f64| {
             if x < top {
-                x.ceil().max(0.0) as u16
+                if x > 0.0 {
+                    let t = x as u16;
+                    t + u16::from(f64::from(t) < x)
+                } else {
+                    0
+                }
             } else {
                 u16::MAX
             }
@@ -855,6 +856,64 @@ impl Guard {
 mod tests {
     use super::*;
     use crate::geom::test_rng::Rng;
+
+    /// The quantized boxes are floor and ceil of the frame coordinates,
+    /// clamped to 16 bits (NaN: the whole frame), whatever the value:
+    /// negative, whole, just off whole, at and beyond the top.
+    #[test]
+    fn quantized_boxes_round_outward_like_floor_and_ceil() {
+        let top = f64::from(u16::MAX);
+        let floor = |x: f64| {
+            if x > 0.0 {
+                x.floor().min(top) as u16
+            } else {
+                0
+            }
+        };
+        let ceil = |x: f64| {
+            if x < top {
+                x.ceil().max(0.0) as u16
+            } else {
+                u16::MAX
+            }
+        };
+        let q = Quantizer {
+            lo: DVec3::ZERO,
+            inv: 1.0,
+        };
+        let mut values = vec![
+            f64::NAN,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            -1.0,
+            -0.5,
+            -0.0,
+            0.0,
+            1e-300,
+            0.5,
+            1.0,
+            top - 1.0,
+            top - 0.5,
+            top,
+            top + 0.5,
+            1e300,
+        ];
+        for k in 1..2000 {
+            let x = f64::from(k) * 0.37;
+            values.extend([
+                x,
+                x.next_up(),
+                x.next_down(),
+                x.floor(),
+                x.floor().next_up(),
+            ]);
+        }
+        for x in values {
+            let b = q.qbox((DVec3::splat(x), DVec3::splat(x)));
+            assert_eq!(b.lo, [floor(x); 3], "floor of {x}");
+            assert_eq!(b.hi, [ceil(x); 3], "ceil of {x}");
+        }
+    }
 
     /// A ring around the origin at the given angles (radians), radii and heights.
     fn ring_at(angles: &[f64], radii: &[f64], heights: &[f64]) -> Vec<DVec3> {

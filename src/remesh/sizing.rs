@@ -203,9 +203,10 @@ impl Field {
             let c = (q[a] + 1.5) / self.cell[a] as f64 - 0.5;
             let hi = (self.dims[a] - 1) as f64;
             let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, hi) };
-            let f = c.floor().min((self.dims[a].max(2) - 2) as f64);
-            base[a] = f as usize;
-            frac[a] = c - f;
+            // (c ≥ 0: the cast is the floor, without a call to libm's)
+            let f = (c as usize).min(self.dims[a].max(2) - 2);
+            base[a] = f;
+            frac[a] = c - f as f64;
         }
         let [nx, ny, _] = self.dims;
         let step = |a: usize| usize::from(self.dims[a] > 1);
