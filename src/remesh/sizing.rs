@@ -201,8 +201,8 @@ impl Field {
         let mut frac = [0f64; 3];
         for a in 0..3 {
             let c = (q[a] + 1.5) / self.cell[a] as f64 - 0.5;
-            let hi = (self.dims[a] - 1) as f64;
-            let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, hi) };
+            // clamped into the grid (NaN → 0: `max` takes the number)
+            let c = c.max(0.0).min((self.dims[a] - 1) as f64);
             // (c ≥ 0: the cast is the floor, without a call to libm's)
             let f = (c as usize).min(self.dims[a].max(2) - 2);
             base[a] = f;
