@@ -152,6 +152,11 @@ pub fn triangles_intersect(p: &[DVec3], s: [u32; 3], t: [u32; 3]) -> bool {
 /// [`triangles_intersect`] for triangles given by their corner positions and
 /// vertex identities (`sk`, `tk`: equal keys are the same vertex, which the
 /// triangles may share without intersecting).
+/// The two corners after corner `i` of a triangle, in order (a table: `% 3`
+/// on a run-time index costs a multiply-and-shift per corner in the guard's
+/// hottest test).
+const AFTER: [[usize; 2]; 3] = [[1, 2], [2, 0], [0, 1]];
+
 pub fn triangles_cross(sp: &[DVec3; 3], sk: &[u64; 3], tp: &[DVec3; 3], tk: &[u64; 3]) -> bool {
     let mut shared = [(0usize, 0usize); 3];
     let mut n_shared = 0;
@@ -164,12 +169,12 @@ pub fn triangles_cross(sp: &[DVec3; 3], sk: &[u64; 3], tp: &[DVec3; 3], tk: &[u6
         }
     }
     let shared = &shared[..n_shared];
-    let (sp, tp) = (*sp, *tp);
     if let [(i, j)] = *shared {
         // neighbours around a common vertex, the usual pair in a mesh: apart
         // when their sectors at it are apart, seen along their normals
-        let (s1, s2) = (sp[(i + 1) % 3], sp[(i + 2) % 3]);
-        let (t1, t2) = (tp[(j + 1) % 3], tp[(j + 2) % 3]);
+        let ([i1, i2], [j1, j2]) = (AFTER[i], AFTER[j]);
+        let (s1, s2) = (sp[i1], sp[i2]);
+        let (t1, t2) = (tp[j1], tp[j2]);
         if beside_plane(sp[i], s1, s2, t1, t2)
             || beside_plane(sp[i], t1, t2, s1, s2)
             || sectors_apart(sp[i], s1, s2, t1, t2)
@@ -177,18 +182,19 @@ pub fn triangles_cross(sp: &[DVec3; 3], sk: &[u64; 3], tp: &[DVec3; 3], tk: &[u6
             return false;
         }
     }
-    if n_shared < 2 && (separated_by_plane(&sp, &tp) || separated_by_plane(&tp, &sp)) {
+    if n_shared < 2 && (separated_by_plane(sp, tp) || separated_by_plane(tp, sp)) {
         return false;
     }
     match shared.len() {
-        0 => disjoint_intersect(&sp, &tp),
+        0 => disjoint_intersect(sp, tp),
         1 => {
             let (i, j) = shared[0];
             // the opposite edge of each against the other triangle
-            let (s1, s2) = (sp[(i + 1) % 3], sp[(i + 2) % 3]);
-            let (t1, t2) = (tp[(j + 1) % 3], tp[(j + 2) % 3]);
-            segment_hits_triangle(s1, s2, &tp)
-                || segment_hits_triangle(t1, t2, &sp)
+            let ([i1, i2], [j1, j2]) = (AFTER[i], AFTER[j]);
+            let (s1, s2) = (sp[i1], sp[i2]);
+            let (t1, t2) = (tp[j1], tp[j2]);
+            segment_hits_triangle(s1, s2, tp)
+                || segment_hits_triangle(t1, t2, sp)
                 || coplanar_wedges_overlap(sp[i], s1, s2, t1, t2)
         }
         2 => {
