@@ -199,14 +199,17 @@ impl Field {
         let q = self.to_index * (p - self.origin);
         let mut base = [0usize; 3];
         let mut frac = [0f64; 3];
+        // (conversions through u32, exact for these small counts: between
+        // f64 and u64 they take several instructions each on x86_64)
+        let float = |n: usize| f64::from(n as u32);
         for a in 0..3 {
-            let c = (q[a] + 1.5) / self.cell[a] as f64 - 0.5;
+            let c = (q[a] + 1.5) / float(self.cell[a]) - 0.5;
             // clamped into the grid (NaN → 0: `max` takes the number)
-            let c = c.max(0.0).min((self.dims[a] - 1) as f64);
+            let c = c.max(0.0).min(float(self.dims[a] - 1));
             // (c ≥ 0: the cast is the floor, without a call to libm's)
-            let f = (c as usize).min(self.dims[a].max(2) - 2);
+            let f = (c as u32 as usize).min(self.dims[a].max(2) - 2);
             base[a] = f;
-            frac[a] = c - f as f64;
+            frac[a] = c - float(f);
         }
         let [nx, ny, _] = self.dims;
         let step = |a: usize| usize::from(self.dims[a] > 1);
