@@ -82,12 +82,9 @@ impl HalfedgeMesh {
             return Err(BuildError::DegenerateTriangle(t));
         }
         // Corner c = 3 t + k is the directed edge tri[k] -> tri[k + 1]. The
-        // corners leaving each vertex, by counting sort, find each corner's
-        // opposite without a hash map.
-        let corner = |c: usize| {
-            let t = &tris[c / 3];
-            (t[c % 3], t[(c % 3 + 1) % 3])
-        };
+        // corners leaving each vertex, by counting sort, with the vertex each
+        // goes to, find each corner's opposite without a hash map (and
+        // without dividing corner ids by 3 in the scans).
         let mut start = vec![0u32; nv + 1];
         for t in tris {
             for &v in t {
@@ -98,11 +95,14 @@ impl HalfedgeMesh {
             start[v + 1] += start[v];
         }
         let mut fill = start.clone();
-        let mut leaving = vec![0u32; 3 * tris.len()];
-        for c in 0..3 * tris.len() {
-            let a = corner(c).0 as usize;
-            leaving[fill[a] as usize] = c as u32;
-            fill[a] += 1;
+        // (corner, the vertex it goes to)
+        let mut leaving = vec![(0u32, 0u32); 3 * tris.len()];
+        for (t, tri) in tris.iter().enumerate() {
+            for k in 0..3 {
+                let a = tri[k] as usize;
+                leaving[fill[a] as usize] = ((3 * t + k) as u32, tri[(k + 1) % 3]);
+                fill[a] += 1;
+            }
         }
         let leaving_from =
             |v: u32| &leaving[start[v as usize] as usize..start[v as usize + 1] as usize];
@@ -118,18 +118,18 @@ impl HalfedgeMesh {
         m.e_dead.reserve(halfedges / 2);
         m.f_dead.reserve(tris.len());
         m.face_hint = vec![Cell::new(NONE); tris.len()];
-        for (t, _) in tris.iter().enumerate() {
+        for (t, tri) in tris.iter().enumerate() {
             let f = m.f_h.len() as u32;
             m.f_h.push(NONE);
             m.f_dead.push(false);
             let mut hs = [0u32; 3];
             for k in 0..3 {
                 let c = 3 * t + k;
-                let (a, b) = corner(c);
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
                 // a second corner a -> b: the edge is used twice the same way
                 if leaving_from(a)
                     .iter()
-                    .any(|&d| d as usize != c && corner(d as usize).1 == b)
+                    .any(|&(d, to)| d as usize != c && to == b)
                 {
                     return Err(BuildError::NonManifoldEdge(a, b));
                 }
@@ -137,7 +137,7 @@ impl HalfedgeMesh {
                     corner_h[c]
                 } else {
                     let h = m.new_edge(a, b);
-                    if let Some(&d) = leaving_from(b).iter().find(|&&d| corner(d as usize).1 == a) {
+                    if let Some(&(d, _)) = leaving_from(b).iter().find(|&&(_, to)| to == a) {
                         corner_h[d as usize] = h ^ 1;
                     }
                     h
