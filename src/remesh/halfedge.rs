@@ -191,11 +191,26 @@ impl HalfedgeMesh {
     /// Links boundary halfedges into loops and duplicates vertices with several fans.
     fn link_boundary_and_split_fans(&mut self) {
         let nh = self.h_to.len() as u32;
-        // incoming/outgoing boundary halfedges per vertex
-        let mut out_b: Vec<Vec<u32>> = vec![Vec::new(); self.pos.len()];
+        // outgoing boundary halfedges per vertex, in id order (a counting
+        // sort into one array: a vector per vertex was an allocation per
+        // boundary vertex, and blocks have many)
+        let nv = self.pos.len();
+        let mut b_start = vec![0u32; nv + 1];
         for h in 0..nh {
             if self.h_face[h as usize] == NONE {
-                out_b[self.from(h) as usize].push(h);
+                b_start[self.from(h) as usize + 1] += 1;
+            }
+        }
+        for v in 0..nv {
+            b_start[v + 1] += b_start[v];
+        }
+        let mut b_fill = b_start.clone();
+        let mut out_b = vec![0u32; b_start[nv] as usize];
+        for h in 0..nh {
+            if self.h_face[h as usize] == NONE {
+                let v = self.from(h) as usize;
+                out_b[b_fill[v] as usize] = h;
+                b_fill[v] += 1;
             }
         }
         for h in 0..nh {
@@ -214,8 +229,8 @@ impl HalfedgeMesh {
             }
         }
         // outgoing halfedges; one per fan, duplicate vertices with several fans
-        for v in 0..self.pos.len() {
-            let bs = std::mem::take(&mut out_b[v]);
+        for v in 0..nv {
+            let bs = &out_b[b_start[v] as usize..b_start[v + 1] as usize];
             for (i, &b) in bs.iter().enumerate() {
                 let target = if i == 0 {
                     v as u32

@@ -1328,9 +1328,10 @@ fn build_patch<'r>(
     rp: RegionPatch<'r>,
     local_ids: &mut [u32],
 ) -> PatchState<'r> {
-    // local ids in order of first use
-    let mut lpos = Vec::new();
-    let mut tag = Vec::new();
+    // local ids in order of first use (about half as many as triangles,
+    // a few more at the borders)
+    let mut lpos = Vec::with_capacity(rp.triangles.len() / 2 + 64);
+    let mut tag = Vec::with_capacity(rp.triangles.len() / 2 + 64);
     let local_tris: Vec<[u32; 3]> = rp
         .triangles
         .iter()
