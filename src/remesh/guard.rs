@@ -275,7 +275,8 @@ impl Level {
             if x.is_nan() || x <= 0.0 {
                 0
             } else {
-                (x as usize).min(self.dims[k] - 1)
+                // (through u32: see `CellGrid::coords`)
+                (x as u32 as usize).min(self.dims[k] - 1)
             }
         };
         [c(0), c(1), c(2)]
