@@ -429,8 +429,10 @@ pub fn parse_png(bytes: &[u8], path: &Path) -> Result<Image2d> {
 
 /// Encodes samples with the `png` crate: `channels` 1 (gray), 3 (RGB) or 4
 /// (RGBA) per pixel, x fastest, rows from the top; 8 bits, or 16 bits
-/// (big-endian pairs in `data`) with `sixteen`. Balanced compression with
-/// adaptive filters: meant for generated images (previews, tests).
+/// (big-endian pairs in `data`) with `sixteen`. Fast compression: meant for
+/// generated images (previews, tests), where `Balanced` spent about 0.35 G
+/// instructions on an 800 × 800 preview (6 % of a whole `septa extract` of
+/// a 48³ phantom) for a file 17 % smaller.
 pub fn encode_png(
     width: usize,
     height: usize,
@@ -467,7 +469,7 @@ pub fn encode_png(
     } else {
         png::BitDepth::Eight
     });
-    e.set_compression(png::Compression::Balanced);
+    e.set_compression(png::Compression::Fast);
     let encoded = e
         .write_header()
         .and_then(|mut wr| wr.write_image_data(data).and_then(|()| wr.finish()));
