@@ -271,36 +271,6 @@ impl<'r> Remesher<'r> {
         }
     }
 
-    /// Whether an interior edge of patch `p` between its junction vertices
-    /// `a` and `b` (local ids) would be an edge of no other patch: shown
-    /// when one of them lies on a curve within this region (so that every
-    /// patch around it is here, in `copies`) and no other patch has an
-    /// edge between its copies of the two. `false` where that cannot be
-    /// shown (both are corners, or vertices shared with other blocks).
-    fn junction_edge_free(&self, p: u32, a: u32, b: u32) -> bool {
-        let m = &self.patches[p as usize].mesh;
-        let (ta, tb) = (m.tag[a as usize], m.tag[b as usize]);
-        let on_curve =
-            |t: u32| t != NONE && matches!(self.kind.get(t as usize), Some(VertexKind::Curve(_)));
-        let (seen, other) = if on_curve(ta) {
-            (ta, tb)
-        } else if on_curve(tb) {
-            (tb, ta)
-        } else {
-            return false;
-        };
-        if other == NONE {
-            return false;
-        }
-        let Some(copies) = self.copies.get(&seen) else {
-            return false;
-        };
-        copies.iter().all(|&(q, lv)| {
-            let mq = &self.patches[q as usize].mesh;
-            q == p || !mq.outgoing(lv).any(|k| mq.tag[mq.to(k) as usize] == other)
-        })
-    }
-
     /// One curve pass and one pass over every patch.
     pub(super) fn iterate(&mut self) {
         let t = std::time::Instant::now();
@@ -749,8 +719,7 @@ impl<'r> Remesher<'r> {
                 reference: st.reference,
                 eps: self.eps,
             };
-            st.mesh.is_collapse_ok(h)
-                && collapse_geometry_ok(&st.mesh, h, target_pos, None, fit, &|_, _| false)
+            st.mesh.is_collapse_ok(h) && collapse_geometry_ok(&st.mesh, h, target_pos, None, fit)
         });
         if !ok {
             return false;
@@ -881,9 +850,8 @@ impl<'r> Remesher<'r> {
                     continue;
                 }
                 let at = m.pos[m.to(h) as usize];
-                let free = |a: u32, b: u32| self.junction_edge_free(p, a, b);
                 if m.is_collapse_ok(h)
-                    && collapse_geometry_ok(m, h, at, max_edge, fit, &free)
+                    && collapse_geometry_ok(m, h, at, max_edge, fit)
                     && self.guarded_collapse(p, h, at)
                 {
                     continue 'edges;
@@ -904,9 +872,8 @@ impl<'r> Remesher<'r> {
                 (m.pos[v0 as usize] + m.pos[v1 as usize]) * 0.5,
                 m.hint[v1 as usize],
             );
-            let free = |a: u32, b: u32| self.junction_edge_free(p, a, b);
-            if collapse_geometry_ok(m, e, at, max_edge, fit, &free)
-                && collapse_geometry_ok(m, e ^ 1, at, max_edge, fit, &free)
+            if collapse_geometry_ok(m, e, at, max_edge, fit)
+                && collapse_geometry_ok(m, e ^ 1, at, max_edge, fit)
                 && self.guarded_collapse(p, e, at)
             {
                 self.patches[p as usize].mesh.hint[v1 as usize] = near;
@@ -1559,7 +1526,6 @@ pub(super) fn collapse_geometry_ok(
     p: DVec3,
     max_edge: Option<&Sizing>,
     fit: Fit,
-    junction_edge_free: &dyn Fn(u32, u32) -> bool,
 ) -> bool {
     let (v0, v1) = (m.from(h), m.to(h));
     // a pinched vertex's other copies are out of sight: the new edges at it
@@ -1604,15 +1570,13 @@ pub(super) fn collapse_geometry_ok(
         {
             return false;
         }
-        // an edge between two junction vertices inside a patch must not be
-        // an edge of another patch too (the label surfaces would meet
-        // along it, four triangles at one edge)
+        // an edge between two junction vertices may only appear on the boundary:
+        // inside a patch it could duplicate an edge of a neighbouring patch
         if w != v1
             && m.locked[v1 as usize]
             && m.locked[w as usize]
             && !m.is_boundary_edge(g)
             && !m.outgoing(v1).any(|k| m.to(k) == w)
-            && !junction_edge_free(v1, w)
         {
             return false;
         }
@@ -1624,9 +1588,16 @@ pub(super) fn collapse_geometry_ok(
         if !m.is_boundary_halfedge(o) && m.to(m.next(o)) == v1 {
             return false;
         }
-        // (a triangle on three junction vertices may be made: where another
-        // patch has the same one, the guard refuses it, as triangles that
-        // share all three corners cross)
+        // a triangle on three junction vertices may be a patch's last piece
+        // between two curves; making one could flatten a small region into
+        // coincident triangles of two patches
+        if !m.locked[v0 as usize]
+            && m.locked[v1 as usize]
+            && m.locked[w as usize]
+            && m.locked[b as usize]
+        {
+            return false;
+        }
         let (pa, pb, p0) = (m.pos[w as usize], m.pos[b as usize], m.pos[v0 as usize]);
         let old_n = (pa - p0).cross(pb - p0);
         let new_n = (pa - p).cross(pb - p);
