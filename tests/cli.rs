@@ -1653,3 +1653,23 @@ fn extract_merge_flat_writes_fewer_triangles_and_needs_no_remesh() {
     );
     assert!(!out.exists());
 }
+
+/// A 48 × 57 × 48 crop of the 117-label parcellation-like volume
+/// (`bench/synthetic_parcellation.py`, seed 1: Voronoi regions with
+/// single-voxel salt noise), remeshed with defaults. Here a collapse that
+/// made a triangle on three junction vertices once carried a one-voxel
+/// region's patches past each other without any crossing left at the end:
+/// the region came out facing the wrong way, and `extract` failed its
+/// invariants. The rule against such triangles is what keeps small regions
+/// from closing up; this must stay valid.
+#[test]
+fn small_regions_of_a_parcellation_stay_outward() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let input = root().join("tests/data/parcellation_crop.nii.gz");
+    let printed = ok(septa(["extract", p(&input), "-o", p(&out), "-q"]));
+    assert!(!printed.contains("VIOLATED"), "{printed}");
+    let manifest: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+    assert!(manifest["quality"].is_object(), "remeshed: {manifest}");
+}
