@@ -765,3 +765,50 @@ fn strips_between_noise_loops_hold_whole_rows() {
         "{short} of {edges} edges from junction vertices into patches short"
     );
 }
+
+/// A third label on 30 % of the voxels of two layers at an interface, on
+/// the head's 2 × 2 × 3 mm voxels: a web of junction curves with narrow
+/// strips of patch between them. A vertex inside such a strip has edges
+/// to three, four or five junction vertices; every collapse that removes it
+/// makes an edge between junction vertices inside the patch, or a triangle
+/// on three of them. Those are made where no other patch has the same edge
+/// and no label region turns inside out (every label surface component
+/// keeps the sign of its volume); refused outright, they left vertices
+/// squeezed between curves, most of the short edges on the noisy head
+/// (90.7 % of its edges in range then, 92.0 % now). Measured here: 89.1 %
+/// of edges in range before, 90.1 % after.
+#[test]
+fn squeezed_vertices_between_junction_curves_collapse() {
+    let (nx, ny, nz) = (36usize, 36usize, 8usize);
+    let mut rng = common::Rng(11);
+    let values: Vec<i64> = (0..nx * ny * nz)
+        .map(|i| {
+            let z = i / (nx * ny);
+            let noise = (3..5).contains(&z) && rng.below(100) < 30;
+            if noise {
+                3
+            } else if z < 4 {
+                1
+            } else {
+                2
+            }
+        })
+        .collect();
+    let vol = on_head_voxels([nx, ny, nz], &values);
+    let r = Resolved::defaults(&vol);
+    let (_, out) = remeshed(&vol, &r, RemeshParams::default_target(vol.geometry()));
+    assert_remeshed_cleanly("dense noise on an interface", &out);
+    let q = quality(
+        &out.mesh,
+        None,
+        &QualityOptions {
+            target_edge_mm: RemeshParams::default_target(vol.geometry()),
+            local: Some(&out.sizing),
+        },
+    );
+    assert!(
+        q.edges.within_range >= 0.895,
+        "{:.4} of edges in range",
+        q.edges.within_range
+    );
+}

@@ -323,7 +323,7 @@ pub fn run(args: &ExtractArgs, ui: &Ui) -> Result<ExitCode> {
 fn report_kept(ui: &Ui, share: f64, islands: f64) {
     ui.say(format!(
         "kept       {:.2} % of the surface as extracted ({:.2} % on small islands), where no \
-         operation could be done without two sheets crossing or an island turning inside out",
+         operation could be done without two sheets crossing or a label region turning inside out",
         100.0 * share,
         100.0 * islands
     ));

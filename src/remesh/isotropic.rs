@@ -33,6 +33,7 @@ use super::guard::{
 use super::halfedge::{HalfedgeMesh, NONE};
 use super::network::VertexKind;
 use super::sizing::Sizing;
+use super::work::Sides;
 use crate::geom::nearest::{CurveRef, NO_TRIANGLE, SurfaceRef};
 use crate::geom::predicates::{is_degenerate, triangle_quality};
 use crate::mesh::quality::{EDGE_RANGE_HI, EDGE_RANGE_LO};
@@ -56,9 +57,9 @@ pub(super) struct PatchState<'r> {
     pub(super) reference: &'r SurfaceRef,
     /// Per face: unchanged since the extraction.
     pub(super) kept: Vec<bool>,
-    /// Per face: its closed component (an index into
-    /// [`Remesher::volumes`]) or [`NONE`].
-    pub(super) component: Vec<u32>,
+    /// Per face: the label surface components on its two sides (indices
+    /// into [`Remesher::volumes`], or [`NONE`]).
+    pub(super) component: Vec<Sides>,
     /// How far off the reference along the normal (mm) the vertices sit in
     /// the offset iterations, on top of their chord offsets: what keeps
     /// the labels' volumes (see `super::volume`).
@@ -66,12 +67,12 @@ pub(super) struct PatchState<'r> {
 }
 
 impl PatchState<'_> {
-    /// Puts the faces from slot `first` on (those just made) in closed
-    /// component `c` (or none: [`NONE`]).
-    fn set_component_of_faces_from(&mut self, first: u32, c: u32) {
+    /// Puts the faces from slot `first` on (those just made) in the
+    /// components `c`.
+    fn set_component_of_faces_from(&mut self, first: u32, c: Sides) {
         let first = first as usize;
         if self.component.len() < first {
-            self.component.resize(first, NONE);
+            self.component.resize(first, [NONE; 2]);
         }
         self.component.truncate(first);
         self.component.resize(self.mesh.face_slots(), c);
@@ -158,11 +159,16 @@ pub(super) struct Remesher<'r> {
     pub(super) eps: f64,
     pub(super) guard: Guard,
     made: Vec<Tri>,
+    /// Per triangle of `made`: the components of its sides (those of the
+    /// faces it replaces).
+    made_sides: Vec<Sides>,
     replaced: Vec<(u32, u32)>,
+    /// Scratch: per component, the volume an operation adds to it.
+    volume_changes: Vec<(u32, f64)>,
     /// Scratch: a vertex's fan, tested for [`is_simple_fan`].
     fan: Vec<Tri>,
-    /// Per closed component: the signed volume it may still lose here (see
-    /// [`Region::volumes`]).
+    /// Per label surface component: the signed volume it may still lose
+    /// here (see [`Region::volumes`]).
     volumes: Vec<f64>,
     /// Debug counters: guard queries, made triangles, guard ns, refusals; then per pass ns: curves, split, collapse, flip, relax
     pub(super) stats: [u64; 10],
@@ -189,10 +195,11 @@ pub(super) struct Region<'r> {
     pub(super) obstacles: Vec<[u32; 3]>,
     /// Operations may make triangles only within this box.
     pub(super) trusted: (DVec3, DVec3),
-    /// Per closed component (a surface component without junctions) of
-    /// which the region holds triangles: its share of the component's
-    /// signed enclosed volume. No operation may take a component's volume
-    /// past its share: the share is what keeps it from turning inside out.
+    /// Per label surface component (a connected piece of one label's closed
+    /// surface) of which the region holds triangles: its share of the
+    /// component's signed enclosed volume. No operation may take a
+    /// component's volume past its share: the share is what keeps a label
+    /// region from turning inside out.
     pub(super) volumes: Vec<f64>,
 }
 
@@ -201,9 +208,9 @@ pub(super) struct RegionPatch<'r> {
     pub(super) triangles: Vec<[u32; 3]>,
     pub(super) hints: Vec<u32>,
     pub(super) kept: Vec<bool>,
-    /// Per triangle: its closed component (an index into
+    /// Per triangle: the components on its two sides (indices into
     /// [`Region::volumes`]) or [`NONE`].
-    pub(super) components: Vec<u32>,
+    pub(super) components: Vec<Sides>,
     /// Offset along the normal on top of the chord offsets (see
     /// [`PatchState::offset`]).
     pub(super) offset: f64,
@@ -246,7 +253,9 @@ impl<'r> Remesher<'r> {
             eps,
             guard,
             made: Vec::new(),
+            made_sides: Vec::new(),
             replaced: Vec::new(),
+            volume_changes: Vec::new(),
             fan: Vec::new(),
             volumes,
             stats: [0; 10],
@@ -271,6 +280,36 @@ impl<'r> Remesher<'r> {
         }
     }
 
+    /// Whether an interior edge of patch `p` between its junction vertices
+    /// `a` and `b` (local ids) would be an edge of no other patch: shown
+    /// when one of them lies on a curve within this region (so that every
+    /// patch around it is here, in `copies`) and no other patch has an
+    /// edge between its copies of the two. `false` where that cannot be
+    /// shown (both are corners, or vertices shared with other blocks).
+    fn junction_edge_free(&self, p: u32, a: u32, b: u32) -> bool {
+        let m = &self.patches[p as usize].mesh;
+        let (ta, tb) = (m.tag[a as usize], m.tag[b as usize]);
+        let on_curve =
+            |t: u32| t != NONE && matches!(self.kind.get(t as usize), Some(VertexKind::Curve(_)));
+        let (seen, other) = if on_curve(ta) {
+            (ta, tb)
+        } else if on_curve(tb) {
+            (tb, ta)
+        } else {
+            return false;
+        };
+        if other == NONE {
+            return false;
+        }
+        let Some(copies) = self.copies.get(&seen) else {
+            return false;
+        };
+        copies.iter().all(|&(q, lv)| {
+            let mq = &self.patches[q as usize].mesh;
+            q == p || !mq.outgoing(lv).any(|k| mq.tag[mq.to(k) as usize] == other)
+        })
+    }
+
     /// One curve pass and one pass over every patch.
     pub(super) fn iterate(&mut self) {
         let t = std::time::Instant::now();
@@ -285,20 +324,22 @@ impl<'r> Remesher<'r> {
 
     // ---- guarded application -------------------------------------------
 
-    /// Whether the triangles in `self.made` may replace those in
-    /// `self.replaced` (the guard).
+    /// Whether the triangles in `self.made` (of sides `self.made_sides`) may
+    /// replace those in `self.replaced` (the guard).
     fn guard_clear(&mut self, fans: Option<SimpleFans>) -> bool {
         self.stats[0] += 1;
         self.stats[1] += self.made.len() as u64;
-        let volume = self.volume_change();
-        if let Some((c, change)) = volume {
+        self.find_volume_changes();
+        // every label surface keeps the sign of its volume: a region cannot
+        // jump through itself and come out inside out (which no crossing
+        // test sees)
+        let flips = |&(c, change): &(u32, f64)| {
             let left = self.volumes[c as usize];
-            // the volume keeps its sign: the component cannot jump through
-            // itself and come out inside out (which no crossing test sees)
-            if !(left * (left + change) > 0.0) {
-                self.stats[3] += 1;
-                return false;
-            }
+            !(left * (left + change) > 0.0)
+        };
+        if self.volume_changes.iter().any(flips) {
+            self.stats[3] += 1;
+            return false;
         }
         let t = self.time_guard.then(std::time::Instant::now);
         let ok = self.guard.clear(&self.made, &self.replaced, fans);
@@ -307,39 +348,54 @@ impl<'r> Remesher<'r> {
         }
         self.stats[3] += u64::from(!ok);
         if ok {
-            if let Some((c, change)) = volume {
+            for &(c, change) in &self.volume_changes {
                 self.volumes[c as usize] += change;
             }
         }
         ok
     }
 
-    /// The closed component that `self.replaced` belongs to, if any, and
-    /// the signed volume it gains when `self.made` replaces them (both bound
-    /// the same ring: the difference is the volume between them, whatever
-    /// the origin).
-    fn volume_change(&self) -> Option<(u32, f64)> {
-        let c = self.replaced.iter().find_map(|&(p, f)| {
-            let c = *self.patches[p as usize].component.get(f as usize)?;
-            (c != NONE).then_some(c)
-        })?;
-        let first = self.made.first()?;
-        let o = first.p[0];
-        let cone = |p: [DVec3; 3]| (p[0] - o).dot((p[1] - o).cross(p[2] - o)) / 6.0;
-        let made: f64 = self.made.iter().map(|t| cone(t.p)).sum();
-        let replaced: f64 = self
-            .replaced
-            .iter()
-            .map(|&(p, f)| {
-                let m = &self.patches[p as usize].mesh;
-                if m.face_dead(f) {
-                    0.0
-                } else {
-                    cone(m.face_vertices(f).map(|v| m.pos[v as usize]))
+    /// Per label surface component, the signed volume it gains when
+    /// `self.made` replaces `self.replaced` (into `self.volume_changes`).
+    /// The made and the replaced faces of one component bound the same ring,
+    /// so the difference is the volume between them, whatever the origin.
+    fn find_volume_changes(&mut self) {
+        let mut changes = std::mem::take(&mut self.volume_changes);
+        changes.clear();
+        debug_assert_eq!(self.made.len(), self.made_sides.len());
+        let o = match self.made.first() {
+            Some(t) => t.p[0],
+            None => match self.replaced.first() {
+                Some(&(p, f)) => {
+                    let m = &self.patches[p as usize].mesh;
+                    m.pos[m.face_vertices(f)[0] as usize]
                 }
-            })
-            .sum();
-        Some((c, made - replaced))
+                None => return,
+            },
+        };
+        let cone = |p: [DVec3; 3]| (p[0] - o).dot((p[1] - o).cross(p[2] - o)) / 6.0;
+        for (t, sides) in self.made.iter().zip(&self.made_sides) {
+            add_to_sides(&mut changes, *sides, cone(t.p));
+        }
+        for &(p, f) in &self.replaced {
+            let st = &self.patches[p as usize];
+            if st.mesh.face_dead(f) {
+                continue;
+            }
+            let sides = st.component.get(f as usize).copied().unwrap_or([NONE; 2]);
+            let face = st.mesh.face_vertices(f).map(|v| st.mesh.pos[v as usize]);
+            add_to_sides(&mut changes, sides, -cone(face));
+        }
+        self.volume_changes = changes;
+    }
+
+    /// The components of face `f` of patch `p`.
+    fn sides_of(&self, p: u32, f: u32) -> Sides {
+        self.patches[p as usize]
+            .component
+            .get(f as usize)
+            .copied()
+            .unwrap_or([NONE; 2])
     }
 
     /// Before faces change: takes them out of the guard.
@@ -434,6 +490,12 @@ impl<'r> Remesher<'r> {
             patch: p,
             apexes: [Some(k1), None, None],
         });
+        // (the faces around an interior vertex are of one piece of each label's surface)
+        let sides = replaced
+            .first()
+            .map_or([NONE; 2], |&(p, f)| self.sides_of(p, f));
+        self.made_sides.clear();
+        self.made_sides.resize(made.len(), sides);
         self.fan = fan;
         self.made = made;
         self.replaced = replaced;
@@ -464,6 +526,9 @@ impl<'r> Remesher<'r> {
         made.push(tri(d, c, a));
         made.push(tri(c, d, b));
         let faces = [(p, m.face(h)), (p, m.face(h ^ 1))];
+        let sides = self.sides_of(p, faces[0].1);
+        self.made_sides.clear();
+        self.made_sides.resize(made.len(), sides);
         self.made = made;
         self.replaced.clear();
         self.replaced.extend_from_slice(&faces);
@@ -492,11 +557,11 @@ impl<'r> Remesher<'r> {
         let st = &mut self.patches[p as usize];
         let before = st.mesh.face_slots() as u32;
         let v = st.mesh.split(h, at);
-        // the new faces are of the split faces' component
+        // the new faces are of the split faces' components
         let c = old
             .first()
             .and_then(|&(_, f)| st.component.get(f as usize).copied())
-            .unwrap_or(NONE);
+            .unwrap_or([NONE; 2]);
         st.set_component_of_faces_from(before, c);
         let mut changed = old;
         changed.extend((before..st.mesh.face_slots() as u32).map(|f| (p, f)));
@@ -585,15 +650,16 @@ impl<'r> Remesher<'r> {
         self.pos.push(mid);
         self.kind.push(self.kind_of_new_curve_vertex(c));
         self.alive.push(true);
-        let mut changed = old;
-        for (p, h) in sites {
+        let mut changed = old.clone();
+        for (&(p, h), &(_, f)) in sites.iter().zip(&old) {
             let st = &mut self.patches[p as usize];
+            let sides = st.component.get(f as usize).copied().unwrap_or([NONE; 2]);
             let before = st.mesh.face_slots() as u32;
             let lm = st.mesh.split(h, mid);
             st.mesh.tag[lm as usize] = new;
             st.mesh.locked[lm as usize] = true;
-            // (faces at a junction curve: of no closed component)
-            st.set_component_of_faces_from(before, NONE);
+            // the new face is of the split face's components
+            st.set_component_of_faces_from(before, sides);
             changed.extend((before..st.mesh.face_slots() as u32).map(|f| (p, f)));
             self.copies.entry(new).or_default().push((p, lm));
         }
@@ -629,10 +695,17 @@ impl<'r> Remesher<'r> {
         let mut made = std::mem::take(&mut self.made);
         made.clear();
         self.replaced.clear();
+        self.made_sides.clear();
         for &(pi, lv) in &copies {
             let m = &self.patches[pi as usize].mesh;
             Self::fan_moved(m, pi, lv, p, v as Key, NONE, &mut made);
+            let first = self.replaced.len();
             Self::faces_around(m, pi, lv, &mut self.replaced);
+            let sides = self
+                .replaced
+                .get(first)
+                .map_or([NONE; 2], |&(q, f)| self.sides_of(q, f));
+            self.made_sides.resize(made.len(), sides);
         }
         self.made = made;
         if !self.guard_clear(None) {
@@ -719,7 +792,8 @@ impl<'r> Remesher<'r> {
                 reference: st.reference,
                 eps: self.eps,
             };
-            st.mesh.is_collapse_ok(h) && collapse_geometry_ok(&st.mesh, h, target_pos, None, fit)
+            st.mesh.is_collapse_ok(h)
+                && collapse_geometry_ok(&st.mesh, h, target_pos, None, fit, &|_, _| false)
         });
         if !ok {
             return false;
@@ -727,11 +801,18 @@ impl<'r> Remesher<'r> {
         let mut made = std::mem::take(&mut self.made);
         made.clear();
         self.replaced.clear();
+        self.made_sides.clear();
         for &(p, h) in &sites {
             let m = &self.patches[p as usize].mesh;
             let (v0, v1) = (m.from(h), m.to(h));
             Self::fan_moved(m, p, v0, target_pos, keep as Key, v1, &mut made);
+            let first = self.replaced.len();
             Self::faces_around(m, p, v0, &mut self.replaced);
+            let sides = self
+                .replaced
+                .get(first)
+                .map_or([NONE; 2], |&(q, f)| self.sides_of(q, f));
+            self.made_sides.resize(made.len(), sides);
         }
         self.made = made;
         if !self.guard_clear(None) {
@@ -850,8 +931,9 @@ impl<'r> Remesher<'r> {
                     continue;
                 }
                 let at = m.pos[m.to(h) as usize];
+                let free = |a: u32, b: u32| self.junction_edge_free(p, a, b);
                 if m.is_collapse_ok(h)
-                    && collapse_geometry_ok(m, h, at, max_edge, fit)
+                    && collapse_geometry_ok(m, h, at, max_edge, fit, &free)
                     && self.guarded_collapse(p, h, at)
                 {
                     continue 'edges;
@@ -872,8 +954,9 @@ impl<'r> Remesher<'r> {
                 (m.pos[v0 as usize] + m.pos[v1 as usize]) * 0.5,
                 m.hint[v1 as usize],
             );
-            if collapse_geometry_ok(m, e, at, max_edge, fit)
-                && collapse_geometry_ok(m, e ^ 1, at, max_edge, fit)
+            let free = |a: u32, b: u32| self.junction_edge_free(p, a, b);
+            if collapse_geometry_ok(m, e, at, max_edge, fit, &free)
+                && collapse_geometry_ok(m, e ^ 1, at, max_edge, fit, &free)
                 && self.guarded_collapse(p, e, at)
             {
                 self.patches[p as usize].mesh.hint[v1 as usize] = near;
@@ -1171,17 +1254,22 @@ impl<'r> Remesher<'r> {
         }
     }
 
-    /// Per closed component of patch `p` whose faces the moves (`from`: the
-    /// old position of each moved vertex) changed: the signed volume it
-    /// gains (the old and the new faces bound the same ring, so the
+    /// Per label surface component of patch `p` whose faces the moves
+    /// (`from`: the old position of each moved vertex) changed: the signed
+    /// volume it gains (the moved vertices are interior to the patch, so the
+    /// old and the new faces of a component bound the same ring, and the
     /// difference is the volume between them, whatever the origin).
     fn component_volume_changes(&self, p: u32, from: &[Option<(DVec3, u32)>]) -> Vec<(u32, f64)> {
         let st = &self.patches[p as usize];
         let m = &st.mesh;
-        let mut changes: Vec<(u32, DVec3, f64)> = Vec::new();
+        let mut changes: Vec<(u32, f64)> = Vec::new();
+        let mut origin = None;
         for f in 0..m.face_slots() as u32 {
-            let c = st.component.get(f as usize).copied().unwrap_or(NONE);
-            if c == NONE || m.face_dead(f) {
+            if m.face_dead(f) {
+                continue;
+            }
+            let sides = st.component.get(f as usize).copied().unwrap_or([NONE; 2]);
+            if sides == [NONE; 2] {
                 continue;
             }
             let vs = m.face_vertices(f);
@@ -1190,22 +1278,15 @@ impl<'r> Remesher<'r> {
             }
             let new = vs.map(|v| m.pos[v as usize]);
             let old = vs.map(|v| from[v as usize].map_or(m.pos[v as usize], |x| x.0));
-            let k = match changes.iter().position(|x| x.0 == c) {
-                Some(k) => k,
-                None => {
-                    changes.push((c, old[0], 0.0));
-                    changes.len() - 1
-                }
-            };
-            let o = changes[k].1;
+            let o = *origin.get_or_insert(old[0]);
             let cone = |q: [DVec3; 3]| (q[0] - o).dot((q[1] - o).cross(q[2] - o)) / 6.0;
-            changes[k].2 += cone(new) - cone(old);
+            add_to_sides(&mut changes, sides, cone(new) - cone(old));
         }
-        changes.into_iter().map(|(c, _, d)| (c, d)).collect()
+        changes
     }
 
-    /// The moved vertices of the closed components whose volume the moves
-    /// would take through zero (which no crossing test sees: a component
+    /// The moved vertices of the label surface components whose volume the
+    /// moves would take through zero (which no crossing test sees: a region
     /// jumping through itself comes out inside out).
     fn volume_sign_changes(&self, p: u32, from: &[Option<(DVec3, u32)>]) -> Vec<u32> {
         let flipped: Vec<u32> = self
@@ -1224,8 +1305,8 @@ impl<'r> Remesher<'r> {
         let m = &st.mesh;
         let mut back = Vec::new();
         for f in 0..m.face_slots() as u32 {
-            let c = st.component.get(f as usize).copied().unwrap_or(NONE);
-            if c != NONE && !m.face_dead(f) && flipped.contains(&c) {
+            let sides = st.component.get(f as usize).copied().unwrap_or([NONE; 2]);
+            if !m.face_dead(f) && sides.iter().any(|c| *c != NONE && flipped.contains(c)) {
                 back.extend(
                     m.face_vertices(f)
                         .into_iter()
@@ -1272,7 +1353,7 @@ impl<'r> Remesher<'r> {
                     patch: p as u32,
                     hint: m.face_hint[f as usize].get(),
                     kept: st.kept.get(f as usize).copied().unwrap_or(false),
-                    component: st.component.get(f as usize).copied().unwrap_or(NONE),
+                    component: st.component.get(f as usize).copied().unwrap_or([NONE; 2]),
                 });
             }
         }
@@ -1304,8 +1385,9 @@ pub(super) struct ResultTriangle {
     pub(super) patch: u32,
     pub(super) hint: u32,
     pub(super) kept: bool,
-    /// Its closed component (an index into the region's volumes) or [`NONE`].
-    pub(super) component: u32,
+    /// The label surface components on its two sides (indices into the
+    /// region's volumes) or [`NONE`].
+    pub(super) component: Sides,
 }
 
 /// A remeshed region (see [`Remesher::finish`]).
@@ -1318,6 +1400,21 @@ pub(super) struct RegionResult {
     pub(super) triangles: Vec<ResultTriangle>,
     /// The curve runs, in the order given, with their vertices now.
     pub(super) curves: Vec<Vec<u32>>,
+}
+
+/// Adds volume `v` to the component on the first side of a triangle in
+/// `changes` and takes it from the one on its second side (the same faces,
+/// turned over).
+fn add_to_sides(changes: &mut Vec<(u32, f64)>, sides: Sides, v: f64) {
+    for (c, v) in [(sides[0], v), (sides[1], -v)] {
+        if c == NONE {
+            continue;
+        }
+        match changes.iter_mut().find(|x| x.0 == c) {
+            Some(x) => x.1 += v,
+            None => changes.push((c, v)),
+        }
+    }
 }
 
 /// The patch mesh of `rp`. `local_ids` (one slot per region vertex) is
@@ -1526,6 +1623,7 @@ pub(super) fn collapse_geometry_ok(
     p: DVec3,
     max_edge: Option<&Sizing>,
     fit: Fit,
+    junction_edge_free: &dyn Fn(u32, u32) -> bool,
 ) -> bool {
     let (v0, v1) = (m.from(h), m.to(h));
     // a pinched vertex's other copies are out of sight: the new edges at it
@@ -1570,13 +1668,15 @@ pub(super) fn collapse_geometry_ok(
         {
             return false;
         }
-        // an edge between two junction vertices may only appear on the boundary:
-        // inside a patch it could duplicate an edge of a neighbouring patch
+        // an edge between two junction vertices inside a patch must not be
+        // an edge of another patch too (the label surfaces would meet
+        // along it, four triangles at one edge)
         if w != v1
             && m.locked[v1 as usize]
             && m.locked[w as usize]
             && !m.is_boundary_edge(g)
             && !m.outgoing(v1).any(|k| m.to(k) == w)
+            && !junction_edge_free(v1, w)
         {
             return false;
         }
@@ -1588,16 +1688,9 @@ pub(super) fn collapse_geometry_ok(
         if !m.is_boundary_halfedge(o) && m.to(m.next(o)) == v1 {
             return false;
         }
-        // a triangle on three junction vertices may be a patch's last piece
-        // between two curves; making one could flatten a small region into
-        // coincident triangles of two patches
-        if !m.locked[v0 as usize]
-            && m.locked[v1 as usize]
-            && m.locked[w as usize]
-            && m.locked[b as usize]
-        {
-            return false;
-        }
+        // (a triangle on three junction vertices may be made: where another
+        // patch has the same one, the guard refuses it, as triangles that
+        // share all three corners cross)
         let (pa, pb, p0) = (m.pos[w as usize], m.pos[b as usize], m.pos[v0 as usize]);
         let old_n = (pa - p0).cross(pb - p0);
         let new_n = (pa - p).cross(pb - p);

@@ -18,10 +18,12 @@
 //!    remeshed in parallel (see `work.rs`), with the same result for any
 //!    number of threads.
 //!
-//! Closed components (without junctions) are remeshed too, with their
-//! enclosed volume kept from passing through zero: an island smaller than
-//! an edge could otherwise jump through itself and come out inside out,
-//! which no crossing test sees.
+//! Every connected piece of every label's surface (closed, across the
+//! patches it is made of) keeps its enclosed volume from passing through
+//! zero: a label region thinner than an edge (an island, a one-voxel
+//! region between junction curves) could otherwise jump through itself
+//! between two operations and come out inside out, which no crossing test
+//! sees.
 //!
 //! Where an operation cannot be done safely the triangles stay as they
 //! are, there only; [`Remeshed::kept_share`] says how much of the surface
@@ -354,6 +356,10 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
         net.kind.clone(),
         mesh.triangles.clone(),
         mesh.triangle_patch.clone(),
+        mesh.patches
+            .iter()
+            .map(|p| p.labels.map(u32::from))
+            .collect(),
         hint,
         net.curves.iter().map(|c| c.vertices.clone()).collect(),
         net.curves.iter().map(|c| c.closed).collect(),

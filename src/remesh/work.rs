@@ -28,7 +28,8 @@ use crate::geom::nearest::{CurveRef, SurfaceRef};
 
 /// The mesh being remeshed: one vertex pool, triangles with their patch, a
 /// hint into the patch's reference, whether they are unchanged since the
-/// extraction, their closed component and their block in this iteration;
+/// extraction, the label surface components on their two sides and their
+/// block in this iteration;
 /// the junction curves over the pool.
 #[derive(Clone, Debug)]
 pub(super) struct Work {
@@ -36,14 +37,17 @@ pub(super) struct Work {
     pub(super) kind: Vec<VertexKind>,
     pub(super) tris: Vec<[u32; 3]>,
     pub(super) patch: Vec<u32>,
+    /// Per patch: its two label ids (the normals point from the first into
+    /// the second).
+    labels: Vec<[u32; 2]>,
     pub(super) hint: Vec<u32>,
     pub(super) kept: Vec<bool>,
-    /// Per triangle: its closed component (a surface component without
-    /// junction vertices) or [`NONE_COMPONENT`]. Found once: no operation
-    /// joins, cuts or opens a component, and the triangles an operation
-    /// makes take the component of those they replace.
-    component: Vec<u32>,
-    /// Per closed component: a point near it, about which its volume is
+    /// Per triangle: the components of the label surfaces on its two sides
+    /// (see [`label_surface_components`]). Found once: no operation joins,
+    /// cuts or opens a component, and the triangles an operation makes
+    /// take the components of those they replace.
+    component: Vec<Sides>,
+    /// Per component: a point near it, about which its volume is
     /// summed (the sum over a closed surface does not depend on the
     /// origin, and a near one keeps it precise).
     origin: Vec<DVec3>,
@@ -242,15 +246,21 @@ struct OutcomeTriangle {
     patch: u32,
     hint: u32,
     kept: bool,
-    component: u32,
+    component: Sides,
     /// The block holding its centroid.
     block: u32,
 }
 
 const NEW: u32 = 1 << 31;
 
-/// No closed component (see [`ClosedComponents`]).
+/// No component (see [`ClosedComponents`]).
 const NONE_COMPONENT: u32 = u32::MAX;
+
+/// The label surface components on a triangle's two sides: `[0]` that of
+/// its patch's first label (behind it: the normal points away from it),
+/// `[1]` that of the second (in front), each an index into the components
+/// or [`NONE_COMPONENT`].
+pub(super) type Sides = [u32; 2];
 
 /// No local id (in [`LOCAL_IDS`]).
 pub(super) const NO_LOCAL: u32 = u32::MAX;
@@ -283,7 +293,7 @@ pub(super) fn return_local_ids(mut local: Vec<u32>, used: &[u32]) {
     LOCAL_IDS.with(|c| c.set(local));
 }
 
-/// Per closed surface component of the working mesh ([`Work::component`]):
+/// Per label surface component of the working mesh ([`Work::component`]):
 /// the share of its signed enclosed volume each slab of a pass may use (its
 /// volume over the number of slabs of the pass holding it, so that together
 /// they cannot take it past zero).
@@ -304,17 +314,21 @@ struct RunResult {
 impl Work {
     /// The working mesh over vertices `pos` (of kinds `kind`) and triangles
     /// `tris` (of patches `patch`, with reference hints `hint`), all as
-    /// extracted, and the junction curves (vertex lists, closed or not).
+    /// extracted, the label ids of each patch (`labels`: the normals point
+    /// from the first into the second) and the junction curves (vertex
+    /// lists, closed or not).
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn new(
         pos: Vec<DVec3>,
         kind: Vec<VertexKind>,
         tris: Vec<[u32; 3]>,
         patch: Vec<u32>,
+        labels: Vec<[u32; 2]>,
         hint: Vec<u32>,
         curves: Vec<Vec<u32>>,
         closed: Vec<bool>,
     ) -> Self {
-        let (component, origin) = closed_components(&pos, &kind, &tris);
+        let (component, origin) = label_surface_components(&pos, &kind, &tris, &patch, &labels);
         Work {
             kept: vec![true; tris.len()],
             block: vec![0; tris.len()],
@@ -322,6 +336,7 @@ impl Work {
             kind,
             tris,
             patch,
+            labels,
             hint,
             component,
             origin,
@@ -421,27 +436,31 @@ impl Work {
     }
 
     /// The share of its signed volume that each slab of `todo` may use, per
-    /// closed component.
+    /// label surface component.
     fn closed_component_shares(&self, todo: &[usize], buckets: &[Vec<u32>]) -> ClosedComponents {
         let pos = &self.pos;
-        let part: Vec<f64> = self
+        let cone = |t: &[u32; 3], c: u32| {
+            if c == NONE_COMPONENT {
+                return 0.0;
+            }
+            let o = self.origin[c as usize];
+            let [a, b, c] = t.map(|v| pos[v as usize] - o);
+            a.dot(b.cross(c)) / 6.0
+        };
+        // the second side is the first turned over: its volume counts negative
+        let part: Vec<[f64; 2]> = self
             .tris
             .par_iter()
             .zip(&self.component)
-            .map(|(t, &c)| {
-                if c == NONE_COMPONENT {
-                    return 0.0;
-                }
-                let o = self.origin[c as usize];
-                let [a, b, c] = t.map(|v| pos[v as usize] - o);
-                a.dot(b.cross(c)) / 6.0
-            })
+            .map(|(t, &[c0, c1])| [cone(t, c0), -cone(t, c1)])
             .collect();
         // summed in triangle order: the same for any number of threads
         let mut volume = vec![0.0; self.origin.len()];
-        for (&c, v) in self.component.iter().zip(part) {
-            if c != NONE_COMPONENT {
-                volume[c as usize] += v;
+        for (sides, v) in self.component.iter().zip(part) {
+            for k in 0..2 {
+                if sides[k] != NONE_COMPONENT {
+                    volume[sides[k] as usize] += v[k];
+                }
             }
         }
         // slabs of this colour holding each component
@@ -449,10 +468,11 @@ impl Work {
         let mut last = vec![usize::MAX; volume.len()];
         for &s in todo {
             for &t in &buckets[s] {
-                let c = self.component[t as usize];
-                if c != NONE_COMPONENT && last[c as usize] != s {
-                    last[c as usize] = s;
-                    slabs[c as usize] += 1;
+                for c in self.component[t as usize] {
+                    if c != NONE_COMPONENT && last[c as usize] != s {
+                        last[c as usize] = s;
+                        slabs[c as usize] += 1;
+                    }
                 }
             }
         }
@@ -465,20 +485,23 @@ impl Work {
     }
 
     /// Every patch a manifold: each directed edge once per patch; the
-    /// closed components carried along are those found afresh.
+    /// label surface components carried along are those found afresh.
     pub(super) fn check(&self) -> Result<(), String> {
-        let (fresh, _) = closed_components(&self.pos, &self.kind, &self.tris);
+        let (fresh, _) =
+            label_surface_components(&self.pos, &self.kind, &self.tris, &self.patch, &self.labels);
         let mut to_fresh: HashMap<u32, u32> = HashMap::new();
         let mut to_carried: HashMap<u32, u32> = HashMap::new();
-        for (t, (&c, &f)) in self.component.iter().zip(&fresh).enumerate() {
-            let same = (c == NONE_COMPONENT) == (f == NONE_COMPONENT)
-                && (c == NONE_COMPONENT
-                    || *to_fresh.entry(c).or_insert(f) == f
-                        && *to_carried.entry(f).or_insert(c) == c);
-            if !same {
-                return Err(format!(
-                    "triangle {t}: carried closed component {c}, found afresh {f}"
-                ));
+        for (t, (carried, found)) in self.component.iter().zip(&fresh).enumerate() {
+            for (&c, &f) in carried.iter().zip(found) {
+                let same = (c == NONE_COMPONENT) == (f == NONE_COMPONENT)
+                    && (c == NONE_COMPONENT
+                        || *to_fresh.entry(c).or_insert(f) == f
+                            && *to_carried.entry(f).or_insert(c) == c);
+                if !same {
+                    return Err(format!(
+                        "triangle {t}: carried label surface component {c}, found afresh {f}"
+                    ));
+                }
             }
         }
         let mut used = vec![false; self.pos.len()];
@@ -600,20 +623,28 @@ impl Work {
         // per local component: its global one
         let mut components: Vec<u32> = Vec::new();
         let mut volumes = Vec::new();
+        // (neighbouring triangles mostly have the same components: the last
+        // two looked up are kept)
+        let mut last = [(NONE_COMPONENT, NONE_COMPONENT); 2];
         for (i, &t) in own.iter().enumerate() {
             let p = patch_ids
                 .binary_search(&self.patch[t as usize])
                 .expect("patch listed");
-            let c = self.component[t as usize];
-            let c = if c == NONE_COMPONENT {
-                NONE_COMPONENT
-            } else {
-                *local_component.entry(c).or_insert_with(|| {
+            let c = self.component[t as usize].map(|c| {
+                if c == NONE_COMPONENT {
+                    return NONE_COMPONENT;
+                }
+                if let Some(&(_, l)) = last.iter().find(|x| x.0 == c) {
+                    return l;
+                }
+                let l = *local_component.entry(c).or_insert_with(|| {
                     volumes.push(closed.share[c as usize]);
                     components.push(c);
                     (volumes.len() - 1) as u32
-                })
-            };
+                });
+                last = [(c, l), last[0]];
+                l
+            });
             let rp = &mut patches[p];
             rp.triangles.push(own_tris[i]);
             rp.hints.push(self.hint[t as usize]);
@@ -773,10 +804,12 @@ impl Work {
                 patch: patch_ids[t.patch as usize],
                 hint: t.hint,
                 kept: t.kept,
-                component: components
-                    .get(t.component as usize)
-                    .copied()
-                    .unwrap_or(NONE_COMPONENT),
+                component: t.component.map(|c| {
+                    components
+                        .get(c as usize)
+                        .copied()
+                        .unwrap_or(NONE_COMPONENT)
+                }),
                 block: block_of(t.vertices),
             });
         }
@@ -906,41 +939,82 @@ fn centroid(pos: &[DVec3], t: &[u32; 3]) -> DVec3 {
     (pos[t[0] as usize] + pos[t[1] as usize] + pos[t[2] as usize]) / 3.0
 }
 
-/// The closed surface components of triangles `tris` over vertices `pos`
-/// (those without junction vertices: no vertex of kind `Curve` or
-/// `Corner`): per triangle its component or [`NONE_COMPONENT`], per
-/// component a point of it.
-fn closed_components(
+/// The connected components of every label's surface, over triangles
+/// `tris` (of patches `patch`, whose label ids are `labels`) and vertices
+/// `pos` (of kinds `kind`): per triangle the components of its two sides
+/// (see [`Sides`]), per component a point of it.
+///
+/// A label's surface is a closed manifold: at every edge exactly two of its
+/// triangles meet. Within a patch, the triangles around a vertex that is on
+/// no junction curve are one piece of both its labels' surfaces; at an edge
+/// between two junction vertices, the sides of the same label are joined
+/// across patches. Every component is a closed surface, so its signed
+/// enclosed volume is defined; keeping it from passing through zero keeps
+/// a small label region from turning inside out, which no crossing test sees
+/// (a region can jump through itself between two states without a crossing
+/// in either).
+fn label_surface_components(
     pos: &[DVec3],
     kind: &[VertexKind],
     tris: &[[u32; 3]],
-) -> (Vec<u32>, Vec<DVec3>) {
-    let n = pos.len();
-    let mut dsu = Dsu::new(n);
-    for t in tris {
-        dsu.union(t[0], t[1]);
-        dsu.union(t[0], t[2]);
-    }
-    let mut junction = vec![false; n];
-    for v in 0..n {
-        if matches!(kind[v], VertexKind::Curve(_) | VertexKind::Corner) {
-            junction[dsu.find(v as u32) as usize] = true;
+    patch: &[u32],
+    labels: &[[u32; 2]],
+) -> (Vec<Sides>, Vec<DVec3>) {
+    let junction = |v: u32| matches!(kind[v as usize], VertexKind::Curve(_) | VertexKind::Corner);
+    // side 2t is triangle t's first label's, 2t + 1 its second's
+    let mut dsu = Dsu::new(2 * tris.len());
+    // the first triangle seen at each vertex off the junction curves
+    let mut first = vec![u32::MAX; pos.len()];
+    // edges between junction vertices: (lower, higher, triangle)
+    let mut junction_edges: Vec<(u32, u32, u32)> = Vec::new();
+    for (t, tri) in tris.iter().enumerate() {
+        let t = t as u32;
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            if !junction(a) {
+                let f = &mut first[a as usize];
+                if *f == u32::MAX {
+                    *f = t;
+                } else {
+                    dsu.union(2 * *f, 2 * t);
+                    dsu.union(2 * *f + 1, 2 * t + 1);
+                }
+            } else if junction(b) {
+                junction_edges.push((a.min(b), a.max(b), t));
+            }
         }
     }
-    let mut index = vec![NONE_COMPONENT; n];
+    junction_edges.sort_unstable();
+    let mut sides: Vec<(u32, u32)> = Vec::new();
+    for run in junction_edges.chunk_by(|x, y| (x.0, x.1) == (y.0, y.1)) {
+        sides.clear();
+        for &(_, _, t) in run {
+            let [a, b] = labels[patch[t as usize] as usize];
+            sides.push((a, 2 * t));
+            sides.push((b, 2 * t + 1));
+        }
+        sides.sort_unstable();
+        // (two per label on a valid mesh; all of them joined otherwise)
+        for same in sides.chunk_by(|x, y| x.0 == y.0) {
+            for w in same.windows(2) {
+                dsu.union(w[0].1, w[1].1);
+            }
+        }
+    }
+    let mut index = vec![NONE_COMPONENT; 2 * tris.len()];
     let mut origin = Vec::new();
     let of_triangle = tris
         .iter()
-        .map(|t| {
-            let r = dsu.find(t[0]) as usize;
-            if junction[r] {
-                return NONE_COMPONENT;
-            }
-            if index[r] == NONE_COMPONENT {
-                index[r] = origin.len() as u32;
-                origin.push(pos[r]);
-            }
-            index[r]
+        .enumerate()
+        .map(|(t, tri)| {
+            [0, 1].map(|k| {
+                let r = dsu.find(2 * t as u32 + k) as usize;
+                if index[r] == NONE_COMPONENT {
+                    index[r] = origin.len() as u32;
+                    origin.push(pos[tri[0] as usize]);
+                }
+                index[r]
+            })
         })
         .collect();
     (of_triangle, origin)
@@ -999,11 +1073,96 @@ fn splice(cv: &[u32], closed: bool, runs: Vec<RunResult>) -> Vec<u32> {
 #[cfg(test)]
 mod tests {
     use super::{
-        NEW, Outcome, OutcomeTriangle, RunResult, Work, by_size_largest_first, largest_first,
-        splice,
+        NEW, Outcome, OutcomeTriangle, RunResult, Work, by_size_largest_first,
+        label_surface_components, largest_first, splice,
     };
     use crate::remesh::network::VertexKind;
     use glam::DVec3;
+
+    /// Two unit cubes, of labels 1 and 2, side by side in label 0 (patches
+    /// 0|1, 0|2 and 1|2, the four vertices of the shared square on the
+    /// junction curve): one component per label's surface, joined across
+    /// the patches at the curve, enclosing the label's volume (label 0's
+    /// surface faces into the cubes: -2).
+    #[test]
+    fn label_surfaces_are_joined_across_patches() {
+        let id = |x: usize, y: usize, z: usize| (x * 4 + y * 2 + z) as u32;
+        let pos: Vec<DVec3> = (0..12)
+            .map(|i| DVec3::new((i / 4) as f64, ((i / 2) % 2) as f64, (i % 2) as f64))
+            .collect();
+        let kind: Vec<VertexKind> = (0..12)
+            .map(|i| {
+                if i / 4 == 1 {
+                    VertexKind::Corner
+                } else {
+                    VertexKind::Interior
+                }
+            })
+            .collect();
+        let labels = vec![[0, 1], [0, 2], [1, 2]];
+        let (mut tris, mut patch) = (Vec::new(), Vec::new());
+        for x0 in 0..2 {
+            for axis in 0..3 {
+                for side in 0..2 {
+                    // the square of cube x0 at `side` along `axis`, corners in a cycle
+                    let corner = |a: usize, b: usize| {
+                        let mut c = [x0, 0, 0];
+                        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+                        c[axis] = if axis == 0 { x0 + side } else { side };
+                        c[u] = if u == 0 { x0 + a } else { a };
+                        c[v] = if v == 0 { x0 + b } else { b };
+                        id(c[0], c[1], c[2])
+                    };
+                    let q = [corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)];
+                    let mut out = DVec3::ZERO;
+                    out[axis] = if side == 1 { 1.0 } else { -1.0 };
+                    let shared = axis == 0 && x0 + side == 1;
+                    if shared && x0 == 1 {
+                        continue;
+                    }
+                    // normals from the first label into the second
+                    let (p, normal) = if shared {
+                        (2, DVec3::X)
+                    } else {
+                        (x0 as u32, -out)
+                    };
+                    let p3 = |v: u32| pos[v as usize];
+                    let n = (p3(q[1]) - p3(q[0])).cross(p3(q[2]) - p3(q[0]));
+                    let q = if n.dot(normal) > 0.0 {
+                        q
+                    } else {
+                        [q[0], q[3], q[2], q[1]]
+                    };
+                    tris.push([q[0], q[1], q[2]]);
+                    tris.push([q[0], q[2], q[3]]);
+                    patch.extend([p, p]);
+                }
+            }
+        }
+        assert_eq!(tris.len(), 22);
+        let (sides, origin) = label_surface_components(&pos, &kind, &tris, &patch, &labels);
+        assert_eq!(origin.len(), 3, "one component per label");
+        let mut volume = vec![0.0; 3];
+        let mut label_of = vec![u32::MAX; 3];
+        for ((t, s), &p) in tris.iter().zip(&sides).zip(&patch) {
+            let [a, b, c] = t.map(|v| pos[v as usize]);
+            let cone = a.dot(b.cross(c)) / 6.0;
+            for k in 0..2 {
+                let l = labels[p as usize][k];
+                let c = s[k] as usize;
+                assert!(
+                    label_of[c] == u32::MAX || label_of[c] == l,
+                    "one label per component"
+                );
+                label_of[c] = l;
+                volume[c] += if k == 0 { cone } else { -cone };
+            }
+        }
+        for (c, &l) in label_of.iter().enumerate() {
+            let want = if l == 0 { -2.0 } else { 1.0 };
+            assert!((volume[c] - want).abs() < 1e-12, "label {l}: {}", volume[c]);
+        }
+    }
 
     /// Every item is worked once and its result comes back in the order of
     /// the list, whatever the number of threads.
@@ -1044,6 +1203,7 @@ mod tests {
             vec![VertexKind::Interior; 3],
             vec![[0, 1, 2]],
             vec![0],
+            vec![[0, 1]],
             vec![0],
             Vec::new(),
             Vec::new(),
@@ -1064,7 +1224,7 @@ mod tests {
                     hint: 0,
                     kept: false,
                     // (the component of the triangle they replace)
-                    component: 0,
+                    component: [0, 1],
                     block: 0,
                 })
                 .into(),
