@@ -1142,8 +1142,8 @@ mod tests {
         assert_eq!(tris.len(), 22);
         let (sides, origin) = label_surface_components(&pos, &kind, &tris, &patch, &labels);
         assert_eq!(origin.len(), 3, "one component per label");
-        let mut volume = vec![0.0; 3];
-        let mut label_of = vec![u32::MAX; 3];
+        let mut volume = [0.0; 3];
+        let mut label_of = [u32::MAX; 3];
         for ((t, s), &p) in tris.iter().zip(&sides).zip(&patch) {
             let [a, b, c] = t.map(|v| pos[v as usize]);
             let cone = a.dot(b.cross(c)) / 6.0;
