@@ -1156,8 +1156,13 @@ impl<'r> Remesher<'r> {
                 }
             }
             if back.is_empty() {
-                back = self.volume_sign_changes(p, &from);
+                let changes = self.component_volume_changes(p, moves, &from);
+                back = self.volume_sign_changes(p, &changes, &from);
                 if back.is_empty() {
+                    // what the components' volumes lost
+                    for (c, change) in changes {
+                        self.volumes[c as usize] += change;
+                    }
                     break;
                 }
             }
@@ -1184,12 +1189,7 @@ impl<'r> Remesher<'r> {
             }
         }
         debug_assert!(!out.iter().any(|&o| o), "every face back in the guard");
-        // the faces that did change: no longer as extracted; what the
-        // components' volumes lost
-        let changes = self.component_volume_changes(p, &from);
-        for (c, change) in changes {
-            self.volumes[c as usize] += change;
-        }
+        // the faces that did change: no longer as extracted
         let st = &mut self.patches[pu];
         for f in 0..st.mesh.face_slots() as u32 {
             if !st.mesh.face_dead(f)
@@ -1255,48 +1255,65 @@ impl<'r> Remesher<'r> {
     }
 
     /// Per label surface component of patch `p` whose faces the moves
-    /// (`from`: the old position of each moved vertex) changed: the signed
-    /// volume it gains (the moved vertices are interior to the patch, so the
-    /// old and the new faces of a component bound the same ring, and the
-    /// difference is the volume between them, whatever the origin).
-    fn component_volume_changes(&self, p: u32, from: &[Option<(DVec3, u32)>]) -> Vec<(u32, f64)> {
+    /// (`moves`, of which those still in `from`, the old position of each
+    /// moved vertex) changed: the signed volume it gains (the moved vertices
+    /// are interior to the patch, so the old and the new faces of a
+    /// component bound the same ring, and the difference is the volume
+    /// between them, whatever the origin).
+    fn component_volume_changes(
+        &self,
+        p: u32,
+        moves: &[(u32, DVec3, u32)],
+        from: &[Option<(DVec3, u32)>],
+    ) -> Vec<(u32, f64)> {
         let st = &self.patches[p as usize];
         let m = &st.mesh;
         let mut changes: Vec<(u32, f64)> = Vec::new();
         let mut origin = None;
-        for f in 0..m.face_slots() as u32 {
-            if m.face_dead(f) {
+        for &(v, _, _) in moves {
+            if from[v as usize].is_none() {
                 continue;
             }
-            let sides = st.component.get(f as usize).copied().unwrap_or([NONE; 2]);
-            if sides == [NONE; 2] {
-                continue;
+            for h in m.outgoing(v) {
+                let f = m.face(h);
+                if f == NONE {
+                    continue;
+                }
+                let vs = m.face_vertices(f);
+                // each face once: from its first moved corner
+                if vs.iter().find(|&&w| from[w as usize].is_some()) != Some(&v) {
+                    continue;
+                }
+                let sides = st.component.get(f as usize).copied().unwrap_or([NONE; 2]);
+                if sides == [NONE; 2] {
+                    continue;
+                }
+                let new = vs.map(|w| m.pos[w as usize]);
+                let old = vs.map(|w| from[w as usize].map_or(m.pos[w as usize], |x| x.0));
+                let o = *origin.get_or_insert(old[0]);
+                let cone = |q: [DVec3; 3]| (q[0] - o).dot((q[1] - o).cross(q[2] - o)) / 6.0;
+                add_to_sides(&mut changes, sides, cone(new) - cone(old));
             }
-            let vs = m.face_vertices(f);
-            if !vs.iter().any(|&v| from[v as usize].is_some()) {
-                continue;
-            }
-            let new = vs.map(|v| m.pos[v as usize]);
-            let old = vs.map(|v| from[v as usize].map_or(m.pos[v as usize], |x| x.0));
-            let o = *origin.get_or_insert(old[0]);
-            let cone = |q: [DVec3; 3]| (q[0] - o).dot((q[1] - o).cross(q[2] - o)) / 6.0;
-            add_to_sides(&mut changes, sides, cone(new) - cone(old));
         }
         changes
     }
 
-    /// The moved vertices of the label surface components whose volume the
-    /// moves would take through zero (which no crossing test sees: a region
-    /// jumping through itself comes out inside out).
-    fn volume_sign_changes(&self, p: u32, from: &[Option<(DVec3, u32)>]) -> Vec<u32> {
-        let flipped: Vec<u32> = self
-            .component_volume_changes(p, from)
-            .into_iter()
-            .filter(|&(c, change)| {
+    /// The moved vertices (in `from`) of the label surface components whose
+    /// volume `changes` would take through zero (which no crossing test
+    /// sees: a region jumping through itself comes out inside out).
+    fn volume_sign_changes(
+        &self,
+        p: u32,
+        changes: &[(u32, f64)],
+        from: &[Option<(DVec3, u32)>],
+    ) -> Vec<u32> {
+        let flipped: Vec<u32> = changes
+            .iter()
+            .filter(|&&(c, change)| {
                 let left = self.volumes[c as usize];
                 !(left * (left + change) > 0.0)
             })
-            .map(|(c, _)| c)
+            .map(|&(c, _)| c)
             .collect();
         if flipped.is_empty() {
             return Vec::new();
@@ -1373,6 +1390,7 @@ impl<'r> Remesher<'r> {
             kind,
             alive,
             triangles,
+            volumes: self.volumes,
             curves: self.curves.into_iter().map(|c| c.vertices).collect(),
         }
     }
@@ -1398,6 +1416,8 @@ pub(super) struct RegionResult {
     pub(super) kind: Vec<VertexKind>,
     pub(super) alive: Vec<bool>,
     pub(super) triangles: Vec<ResultTriangle>,
+    /// Per component of [`Region::volumes`]: the share of its volume left.
+    pub(super) volumes: Vec<f64>,
     /// The curve runs, in the order given, with their vertices now.
     pub(super) curves: Vec<Vec<u32>>,
 }

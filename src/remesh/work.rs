@@ -47,6 +47,9 @@ pub(super) struct Work {
     /// cuts or opens a component, and the triangles an operation makes
     /// take the components of those they replace.
     component: Vec<Sides>,
+    /// Per component: its signed enclosed volume, kept up to date with
+    /// what every block's operations changed (summed in block order).
+    volume: Vec<f64>,
     /// Per component: a point near it, about which its volume is
     /// summed (the sum over a closed surface does not depend on the
     /// origin, and a near one keeps it precise).
@@ -238,6 +241,8 @@ struct Outcome {
     triangles: Vec<OutcomeTriangle>,
     /// Per curve run: its curve and what became of it.
     runs: Vec<(u32, RunResult)>,
+    /// Per component changed here: the volume it gained.
+    volume_changes: Vec<(u32, f64)>,
 }
 
 /// A triangle of an [`Outcome`], over global ids.
@@ -271,26 +276,47 @@ thread_local! {
     /// block to block: a hash map per block cost more than the rest of the
     /// gathering (taken out while in use, so a block started on this thread
     /// meanwhile makes its own).
-    static LOCAL_IDS: std::cell::Cell<Vec<u32>> = const { std::cell::Cell::new(Vec::new()) };
+    static LOCAL_IDS: LocalTable = const { std::cell::Cell::new(Vec::new()) };
+    /// Likewise, the local index of each label surface component.
+    static LOCAL_COMPONENTS: LocalTable = const { std::cell::Cell::new(Vec::new()) };
 }
 
-/// This thread's table of local ids ([`NO_LOCAL`] everywhere), for `n`
-/// global vertices; give it back with [`return_local_ids`].
-pub(super) fn take_local_ids(n: usize) -> Vec<u32> {
-    let mut local = LOCAL_IDS.with(|c| c.take());
+/// A per-thread table of local ids (see [`LOCAL_IDS`]).
+type LocalTable = std::cell::Cell<Vec<u32>>;
+
+/// This thread's `table` ([`NO_LOCAL`] everywhere), for `n` global ids;
+/// give it back with [`return_table`].
+fn take_table(table: &'static std::thread::LocalKey<LocalTable>, n: usize) -> Vec<u32> {
+    let mut local = table.with(|c| c.take());
     if local.len() < n {
         local.resize(n, NO_LOCAL);
     }
     local
 }
 
-/// Gives the table back to this thread, with the entries of the global
-/// vertices `used` (the only ones set) back to [`NO_LOCAL`].
-pub(super) fn return_local_ids(mut local: Vec<u32>, used: &[u32]) {
+/// Gives `table` back to this thread, with the entries of the global ids
+/// `used` (the only ones set) back to [`NO_LOCAL`].
+fn return_table(
+    table: &'static std::thread::LocalKey<LocalTable>,
+    mut local: Vec<u32>,
+    used: &[u32],
+) {
     for &g in used {
         local[g as usize] = NO_LOCAL;
     }
-    LOCAL_IDS.with(|c| c.set(local));
+    table.with(|c| c.set(local));
+}
+
+/// This thread's table of local vertex ids ([`NO_LOCAL`] everywhere), for
+/// `n` global vertices; give it back with [`return_local_ids`].
+pub(super) fn take_local_ids(n: usize) -> Vec<u32> {
+    take_table(&LOCAL_IDS, n)
+}
+
+/// Gives the table back to this thread, with the entries of the global
+/// vertices `used` (the only ones set) back to [`NO_LOCAL`].
+pub(super) fn return_local_ids(local: Vec<u32>, used: &[u32]) {
+    return_table(&LOCAL_IDS, local, used);
 }
 
 /// Per label surface component of the working mesh ([`Work::component`]):
@@ -329,6 +355,7 @@ impl Work {
         closed: Vec<bool>,
     ) -> Self {
         let (component, origin) = label_surface_components(&pos, &kind, &tris, &patch, &labels);
+        let volume = component_volumes(&pos, &tris, &component, &origin);
         Work {
             kept: vec![true; tris.len()],
             block: vec![0; tris.len()],
@@ -339,6 +366,7 @@ impl Work {
             labels,
             hint,
             component,
+            volume,
             origin,
             curves,
             closed,
@@ -438,31 +466,7 @@ impl Work {
     /// The share of its signed volume that each slab of `todo` may use, per
     /// label surface component.
     fn closed_component_shares(&self, todo: &[usize], buckets: &[Vec<u32>]) -> ClosedComponents {
-        let pos = &self.pos;
-        let cone = |t: &[u32; 3], c: u32| {
-            if c == NONE_COMPONENT {
-                return 0.0;
-            }
-            let o = self.origin[c as usize];
-            let [a, b, c] = t.map(|v| pos[v as usize] - o);
-            a.dot(b.cross(c)) / 6.0
-        };
-        // the second side is the first turned over: its volume counts negative
-        let part: Vec<[f64; 2]> = self
-            .tris
-            .par_iter()
-            .zip(&self.component)
-            .map(|(t, &[c0, c1])| [cone(t, c0), -cone(t, c1)])
-            .collect();
-        // summed in triangle order: the same for any number of threads
-        let mut volume = vec![0.0; self.origin.len()];
-        for (sides, v) in self.component.iter().zip(part) {
-            for k in 0..2 {
-                if sides[k] != NONE_COMPONENT {
-                    volume[sides[k] as usize] += v[k];
-                }
-            }
-        }
+        let volume = &self.volume;
         // slabs of this colour holding each component
         let mut slabs = vec![0u32; volume.len()];
         let mut last = vec![usize::MAX; volume.len()];
@@ -485,7 +489,8 @@ impl Work {
     }
 
     /// Every patch a manifold: each directed edge once per patch; the
-    /// label surface components carried along are those found afresh.
+    /// label surface components carried along are those found afresh, and
+    /// their volumes as kept up to date are those summed afresh.
     pub(super) fn check(&self) -> Result<(), String> {
         let (fresh, _) =
             label_surface_components(&self.pos, &self.kind, &self.tris, &self.patch, &self.labels);
@@ -502,6 +507,14 @@ impl Work {
                         "triangle {t}: carried label surface component {c}, found afresh {f}"
                     ));
                 }
+            }
+        }
+        let summed = component_volumes(&self.pos, &self.tris, &self.component, &self.origin);
+        for (c, (&kept, &found)) in self.volume.iter().zip(&summed).enumerate() {
+            if !((kept - found).abs() <= 1e-6 * found.abs().max(1.0)) {
+                return Err(format!(
+                    "component {c}: volume kept up to date {kept}, summed afresh {found}"
+                ));
             }
         }
         let mut used = vec![false; self.pos.len()];
@@ -545,6 +558,7 @@ impl Work {
             made: Vec::new(),
             triangles: Vec::new(),
             runs: Vec::new(),
+            volume_changes: Vec::new(),
         };
         if own.is_empty() {
             return empty;
@@ -619,13 +633,10 @@ impl Work {
                 offset: shared.patch_offsets.get(p as usize).copied().unwrap_or(0.0),
             })
             .collect();
-        let mut local_component: HashMap<u32, u32> = HashMap::new();
+        let mut local_component = take_table(&LOCAL_COMPONENTS, self.origin.len());
         // per local component: its global one
         let mut components: Vec<u32> = Vec::new();
         let mut volumes = Vec::new();
-        // (neighbouring triangles mostly have the same components: the last
-        // two looked up are kept)
-        let mut last = [(NONE_COMPONENT, NONE_COMPONENT); 2];
         for (i, &t) in own.iter().enumerate() {
             let p = patch_ids
                 .binary_search(&self.patch[t as usize])
@@ -634,16 +645,13 @@ impl Work {
                 if c == NONE_COMPONENT {
                     return NONE_COMPONENT;
                 }
-                if let Some(&(_, l)) = last.iter().find(|x| x.0 == c) {
-                    return l;
-                }
-                let l = *local_component.entry(c).or_insert_with(|| {
+                let l = &mut local_component[c as usize];
+                if *l == NO_LOCAL {
+                    *l = volumes.len() as u32;
                     volumes.push(closed.share[c as usize]);
                     components.push(c);
-                    (volumes.len() - 1) as u32
-                });
-                last = [(c, l), last[0]];
-                l
+                }
+                *l
             });
             let rp = &mut patches[p];
             rp.triangles.push(own_tris[i]);
@@ -651,6 +659,7 @@ impl Work {
             rp.kept.push(self.kept[t as usize]);
             rp.components.push(c);
         }
+        return_table(&LOCAL_COMPONENTS, local_component, &components);
 
         // curve runs: maximal chains of edges with a free end
         let mut curves_here: Vec<u32> = (0..n_own_vertices)
@@ -780,6 +789,12 @@ impl Work {
         let mut out = empty;
         out.stats = result.stats;
         out.stats[9] = t_slab.elapsed().as_nanos() as u64;
+        out.volume_changes = components
+            .iter()
+            .zip(&result.volumes)
+            .map(|(&c, &left)| (c, left - closed.share[c as usize]))
+            .filter(|&(_, change)| change != 0.0)
+            .collect();
         for l in 0..n_own_vertices {
             if !free[l] {
                 continue;
@@ -892,6 +907,10 @@ impl Work {
                 run.vertices = run.vertices.into_iter().map(g).collect();
                 runs_by_curve.entry(c).or_default().push(run);
             }
+            // (in block order: the same sums for any number of threads)
+            for (c, change) in o.volume_changes {
+                self.volume[c as usize] += change;
+            }
         }
         let mut curves: Vec<u32> = runs_by_curve.keys().copied().collect();
         curves.sort_unstable();
@@ -937,6 +956,41 @@ impl Work {
 #[inline]
 fn centroid(pos: &[DVec3], t: &[u32; 3]) -> DVec3 {
     (pos[t[0] as usize] + pos[t[1] as usize] + pos[t[2] as usize]) / 3.0
+}
+
+/// The signed volume each component encloses, over triangles `tris` (of
+/// components `component`) and vertices `pos`, summed in triangle order
+/// about each component's `origin`. The second side of a triangle is the
+/// first turned over: its volume counts negative.
+fn component_volumes(
+    pos: &[DVec3],
+    tris: &[[u32; 3]],
+    component: &[Sides],
+    origin: &[DVec3],
+) -> Vec<f64> {
+    let cone = |t: &[u32; 3], c: u32| {
+        if c == NONE_COMPONENT {
+            return 0.0;
+        }
+        let o = origin[c as usize];
+        let [a, b, c] = t.map(|v| pos[v as usize] - o);
+        a.dot(b.cross(c)) / 6.0
+    };
+    let part: Vec<[f64; 2]> = tris
+        .par_iter()
+        .zip(component)
+        .map(|(t, &[c0, c1])| [cone(t, c0), -cone(t, c1)])
+        .collect();
+    // summed in triangle order: the same for any number of threads
+    let mut volume = vec![0.0; origin.len()];
+    for (sides, v) in component.iter().zip(part) {
+        for k in 0..2 {
+            if sides[k] != NONE_COMPONENT {
+                volume[sides[k] as usize] += v[k];
+            }
+        }
+    }
+    volume
 }
 
 /// The connected components of every label's surface, over triangles
@@ -1229,6 +1283,7 @@ mod tests {
                 })
                 .into(),
             runs: Vec::new(),
+            volume_changes: Vec::new(),
         };
         work.merge(&[0], vec![outcome]);
         assert_eq!(work.pos.len(), 4);
