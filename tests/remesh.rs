@@ -700,6 +700,28 @@ fn a_small_junction_loop_keeps_its_size() {
     assert!(shortest > 0.3, "shortest edge {shortest} mm");
 }
 
+/// Labels 1 below and 2 above an interface, on the head's voxels (36 × 36
+/// × 8), with a third label on `percent` % of the voxels of the two layers
+/// at the interface: a web of junction loops.
+fn noisy_interface(percent: u64) -> LabelVolume {
+    let (nx, ny, nz) = (36usize, 36usize, 8usize);
+    let mut rng = common::Rng(11);
+    let values: Vec<i64> = (0..nx * ny * nz)
+        .map(|i| {
+            let z = i / (nx * ny);
+            let noise = (3..5).contains(&z) && rng.below(100) < percent;
+            if noise {
+                3
+            } else if z < 4 {
+                1
+            } else {
+                2
+            }
+        })
+        .collect();
+    on_head_voxels([nx, ny, nz], &values)
+}
+
 /// Noise voxels of a third label on an interface, on the head's 2 × 2 × 3
 /// mm voxels: the interface between their junction loops is a web of
 /// strips. A strip 1.5 targets wide is too wide for one row of triangles
@@ -715,22 +737,7 @@ fn a_small_junction_loop_keeps_its_size() {
 /// the cap's diagonal would be 1.4).
 #[test]
 fn strips_between_noise_loops_hold_whole_rows() {
-    let (nx, ny, nz) = (36usize, 36usize, 8usize);
-    let mut rng = common::Rng(11);
-    let values: Vec<i64> = (0..nx * ny * nz)
-        .map(|i| {
-            let z = i / (nx * ny);
-            let noise = (3..5).contains(&z) && rng.below(100) < 6;
-            if noise {
-                3
-            } else if z < 4 {
-                1
-            } else {
-                2
-            }
-        })
-        .collect();
-    let vol = on_head_voxels([nx, ny, nz], &values);
+    let vol = noisy_interface(6);
     let r = Resolved::defaults(&vol);
     let (_, out) = remeshed(&vol, &r, RemeshParams::default_target(vol.geometry()));
     assert_remeshed_cleanly("noisy interface", &out);
@@ -779,22 +786,7 @@ fn strips_between_noise_loops_hold_whole_rows() {
 /// of edges in range before, 90.1 % after.
 #[test]
 fn squeezed_vertices_between_junction_curves_collapse() {
-    let (nx, ny, nz) = (36usize, 36usize, 8usize);
-    let mut rng = common::Rng(11);
-    let values: Vec<i64> = (0..nx * ny * nz)
-        .map(|i| {
-            let z = i / (nx * ny);
-            let noise = (3..5).contains(&z) && rng.below(100) < 30;
-            if noise {
-                3
-            } else if z < 4 {
-                1
-            } else {
-                2
-            }
-        })
-        .collect();
-    let vol = on_head_voxels([nx, ny, nz], &values);
+    let vol = noisy_interface(30);
     let r = Resolved::defaults(&vol);
     let (_, out) = remeshed(&vol, &r, RemeshParams::default_target(vol.geometry()));
     assert_remeshed_cleanly("dense noise on an interface", &out);
