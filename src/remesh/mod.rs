@@ -92,7 +92,7 @@ impl Default for RemeshParams {
             min_edge: None,
             smooth_iterations: 10,
             max_displacement: 0.5,
-            iterations: 8,
+            iterations: 6,
         }
     }
 }
@@ -270,8 +270,9 @@ const FIT_VOXELS: f64 = 0.3;
 
 /// The last iterations, in which relaxation offsets vertices so that the
 /// triangles lie on the reference on average (see `isotropic::chord_offset`):
-/// two, because blocks shift between iterations and a vertex on the border
-/// of two blocks is relaxed only in the iteration that has it inside one.
+/// two. (Chosen when a vertex on a block border was relaxed only in the
+/// iteration that had it inside a block; with halos every vertex is relaxed
+/// in each iteration, and one offset iteration has not been measured since.)
 const CHORD_OFFSET_ITERATIONS: u32 = 2;
 
 /// Islands (closed components without junctions) of at most this many
@@ -445,7 +446,17 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
         // join those vertices, points between them and points projected
         // from there onto the reference, which one edge covers
         let reach = longest.max(sizing.max() * isotropic_split_above());
-        let blocks = Blocks::over(&work, BLOCK_REACHES * reach, reach, 0.5 * (it % 2) as f64);
+        // a block's pass takes a strip of its later neighbours as wide as
+        // the longest edge an operation makes: enough that the vertices
+        // locked at the strip's far side are free in the neighbour's pass
+        let halo = sizing.max() * isotropic_split_above();
+        let blocks = Blocks::over(
+            &work,
+            BLOCK_REACHES * reach,
+            reach,
+            halo,
+            0.5 * (it % 2) as f64,
+        );
         let t = std::time::Instant::now();
         work.assign_blocks(&blocks);
         for colour in 0..COLOURS {

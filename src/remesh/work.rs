@@ -12,7 +12,11 @@
 //! reach, so no two of them touch the same triangle or see each other's; the
 //! result does not depend on the number of threads. The other colours
 //! follow, then the next iteration with the block borders moved by half a
-//! block, so that no seam stays locked. (Slabs along one axis, the earlier
+//! block. A block's pass also takes the triangles of its neighbours of later
+//! colours within a halo of its border ([`Blocks::pass_block`]), so the
+//! vertices on every border are free in one pass of each iteration: seams
+//! locked for a whole iteration cost a share of the edges in range (MNI152:
+//! 97.4 % with them, 97.9 % without, at 8 iterations). (Slabs along one axis, the earlier
 //! design, left two or three busy slabs per colour on real heads: one
 //! thread idle half the time.)
 
@@ -92,6 +96,9 @@ pub(super) struct Blocks {
     pub(super) count: [usize; 2],
     /// How far beyond its block an operation may make triangles (mm).
     pub(super) reach: f64,
+    /// How far a block's pass reaches into its neighbours of later colours
+    /// (mm; see [`Blocks::pass_block`]).
+    pub(super) halo: f64,
 }
 
 /// Colours of [`Blocks`]: blocks of one colour are remeshed at the same time.
@@ -101,7 +108,7 @@ impl Blocks {
     /// Blocks over `work`'s extent at least `min_width` wide (and at most
     /// about 6 per axis: enough to keep two threads busy, few enough to leave
     /// little of the surface on block borders), shifted by `shift` block widths.
-    pub(super) fn over(work: &Work, min_width: f64, reach: f64, shift: f64) -> Blocks {
+    pub(super) fn over(work: &Work, min_width: f64, reach: f64, halo: f64, shift: f64) -> Blocks {
         let (lo, hi) = work.pos.iter().fold(
             (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
             |(lo, hi), p| (lo.min(*p), hi.max(*p)),
@@ -120,6 +127,7 @@ impl Blocks {
             width,
             count,
             reach,
+            halo,
         }
     }
 
@@ -158,6 +166,44 @@ impl Blocks {
         i % 2 + 2 * (j % 2)
     }
 
+    /// Border `i` along grid axis `k` (between blocks `i - 1` and `i`).
+    fn bound(&self, k: usize, i: usize) -> f64 {
+        self.origin[k] + i as f64 * self.width[k]
+    }
+
+    /// The block whose pass of colour `colour` remeshes a triangle of block
+    /// `own` with centroid `p`: the block of that colour next to `own` if
+    /// `own`'s colour comes later and `p` lies within the halo of their
+    /// border, else `own`. So each pass also takes a strip of the neighbours
+    /// that have not had theirs yet, and the vertices on its block's border,
+    /// shared with those neighbours, are free in it: no seam stays locked
+    /// through an iteration (the vertices locked at the strip's far side are
+    /// inside the neighbour, free in its pass). Two blocks of one colour are
+    /// a block apart, wider than two halos and two reaches, so their passes
+    /// still never meet.
+    fn pass_block(&self, p: DVec3, own: usize, colour: usize) -> usize {
+        if self.colour(own) <= colour || self.halo <= 0.0 {
+            return own;
+        }
+        let c = self.coords(own);
+        let mut at = c;
+        for k in 0..2 {
+            if c[k] % 2 == (colour >> k) % 2 {
+                continue;
+            }
+            // the neighbour along this axis with the parity the colour has
+            let x = p[self.axes[k]];
+            if c[k] > 0 && x - self.bound(k, c[k]) < self.halo {
+                at[k] = c[k] - 1;
+            } else if c[k] + 1 < self.count[k] && self.bound(k, c[k] + 1) - x < self.halo {
+                at[k] = c[k] + 1;
+            } else {
+                return own;
+            }
+        }
+        at[0] + self.count[0] * at[1]
+    }
+
     /// The blocks next to block `b` (sharing a side or a corner).
     fn neighbours(&self, b: usize) -> impl Iterator<Item = usize> + '_ {
         let [i, j] = self.coords(b);
@@ -175,14 +221,14 @@ impl Blocks {
     }
 
     /// The box in which block `b`'s operations may make triangles: the block
-    /// grown by the reach (unbounded along the third axis).
+    /// grown by its halo and the reach (unbounded along the third axis).
     fn trusted(&self, b: usize) -> (DVec3, DVec3) {
         let c = self.coords(b);
         let mut lo = DVec3::splat(f64::NEG_INFINITY);
         let mut hi = DVec3::splat(f64::INFINITY);
         for k in 0..2 {
-            lo[self.axes[k]] = self.origin[k] + c[k] as f64 * self.width[k] - self.reach;
-            hi[self.axes[k]] = self.origin[k] + (c[k] + 1) as f64 * self.width[k] + self.reach;
+            lo[self.axes[k]] = self.bound(k, c[k]) - self.halo - self.reach;
+            hi[self.axes[k]] = self.bound(k, c[k] + 1) + self.halo + self.reach;
         }
         (lo, hi)
     }
@@ -401,6 +447,18 @@ impl Work {
     pub(super) fn pass(&mut self, blocks: &Blocks, colour: usize, shared: &Shared) {
         let t_pass = std::time::Instant::now();
         debug_assert_eq!(self.block.len(), self.tris.len(), "blocks assigned");
+        if blocks.halo > 0.0 {
+            // (a triangle taken into a halo comes back, remeshed, with the
+            // block of its centroid)
+            let pos = &self.pos;
+            self.block
+                .par_iter_mut()
+                .zip(&self.tris)
+                .with_min_len(1 << 14)
+                .for_each(|(b, t)| {
+                    *b = blocks.pass_block(centroid(pos, t), *b as usize, colour) as u32;
+                });
+        }
         let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); blocks.len()];
         for (t, &s) in self.block.iter().enumerate() {
             buckets[s as usize].push(t as u32);
@@ -1127,11 +1185,70 @@ fn splice(cv: &[u32], closed: bool, runs: Vec<RunResult>) -> Vec<u32> {
 #[cfg(test)]
 mod tests {
     use super::{
-        NEW, Outcome, OutcomeTriangle, RunResult, Work, by_size_largest_first,
+        Blocks, COLOURS, NEW, Outcome, OutcomeTriangle, RunResult, Work, by_size_largest_first,
         label_surface_components, largest_first, splice,
     };
     use crate::remesh::network::VertexKind;
     use glam::DVec3;
+
+    /// A pass of one colour takes, from each block of a later colour, only
+    /// the points within the halo of a block of that colour, and the boxes
+    /// in which two blocks of one colour may make triangles never meet.
+    #[test]
+    fn halos_take_strips_of_later_blocks_only() {
+        let blocks = Blocks {
+            axes: [0, 2],
+            origin: [-3.0, 0.0],
+            width: [10.0, 10.0],
+            count: [4, 5],
+            reach: 2.0,
+            halo: 1.5,
+        };
+        let grown = |b: usize, by: f64| {
+            let (lo, hi) = blocks.trusted(b);
+            let r = blocks.halo + blocks.reach - by;
+            (lo + DVec3::new(r, 0.0, r), hi - DVec3::new(r, 0.0, r))
+        };
+        let inside = |p: DVec3, (lo, hi): (DVec3, DVec3)| p.cmpge(lo).all() && p.cmple(hi).all();
+        let mut taken = 0;
+        for x in 0..80 {
+            for z in 0..100 {
+                let p = DVec3::new(-3.0 + 0.5 * x as f64 + 0.25, 7.0, 0.5 * z as f64 + 0.25);
+                let own = blocks.of(p);
+                for colour in 0..COLOURS {
+                    let b = blocks.pass_block(p, own, colour);
+                    if b == own {
+                        // not taken: its own colour comes first, or it lies
+                        // beyond every halo of this colour
+                        let near = (0..blocks.len()).any(|c| {
+                            blocks.colour(c) == colour
+                                && c != own
+                                && inside(p, grown(c, blocks.halo))
+                        });
+                        assert!(
+                            blocks.colour(own) <= colour || !near,
+                            "{p} of {own} left by {colour}"
+                        );
+                    } else {
+                        taken += 1;
+                        assert_eq!(blocks.colour(b), colour);
+                        assert!(blocks.colour(own) > colour);
+                        assert!(inside(p, grown(b, blocks.halo)), "{p} taken by {b}");
+                    }
+                }
+            }
+        }
+        assert!(taken > 0);
+        for a in 0..blocks.len() {
+            for b in 0..a {
+                if blocks.colour(a) == blocks.colour(b) {
+                    let ((alo, ahi), (blo, bhi)) = (blocks.trusted(a), blocks.trusted(b));
+                    let apart = (0..3).any(|k| ahi[k] < blo[k] || bhi[k] < alo[k]);
+                    assert!(apart, "blocks {a} and {b} of colour {}", blocks.colour(a));
+                }
+            }
+        }
+    }
 
     /// Two unit cubes, of labels 1 and 2, side by side in label 0 (patches
     /// 0|1, 0|2 and 1|2, the four vertices of the shared square on the
