@@ -448,8 +448,16 @@ pub fn remesh(mesh: &InterfaceMesh, sizing: &Sizing, params: &RemeshParams) -> R
         let reach = longest.max(sizing.max() * isotropic_split_above());
         // a block's pass takes a strip of its later neighbours as wide as
         // the longest edge an operation makes: enough that the vertices
-        // locked at the strip's far side are free in the neighbour's pass
-        let halo = sizing.max() * isotropic_split_above();
+        // locked at the strip's far side are free in the neighbour's pass.
+        // Not in iteration 0, which coarsens the dense extraction: its
+        // strips would be the densest to remesh twice, and the later
+        // iterations free its seams (measured: the same edges in range,
+        // MNI152 Hausdorff 0.52 vx against 0.62, fewer instructions)
+        let halo = if it == 0 {
+            0.0
+        } else {
+            sizing.max() * isotropic_split_above()
+        };
         let blocks = Blocks::over(
             &work,
             BLOCK_REACHES * reach,
