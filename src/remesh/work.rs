@@ -16,9 +16,9 @@
 //! colours within a halo of its border ([`Blocks::pass_block`]), so the
 //! vertices on every border are free in one pass of each iteration: seams
 //! locked for a whole iteration cost a share of the edges in range (MNI152:
-//! 97.4 % with them, 97.9 % without, at 8 iterations). (Slabs along one axis, the earlier
-//! design, left two or three busy slabs per colour on real heads: one
-//! thread idle half the time.)
+//! 97.4 % with them, 97.9 % without, at 8 iterations). (Slabs along one
+//! axis, the earlier design, left two or three busy slabs per colour on real
+//! heads: one thread idle half the time.)
 
 use glam::DVec3;
 use hashbrown::HashMap;
