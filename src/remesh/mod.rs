@@ -271,8 +271,9 @@ const FIT_VOXELS: f64 = 0.3;
 /// The last iterations, in which relaxation offsets vertices so that the
 /// triangles lie on the reference on average (see `isotropic::chord_offset`):
 /// two. (Chosen when a vertex on a block border was relaxed only in the
-/// iteration that had it inside a block; with halos every vertex is relaxed
-/// in each iteration, and one offset iteration has not been measured since.)
+/// iteration that had it inside a block. With halos every vertex is relaxed
+/// in each iteration, but one offset iteration still fits worse: MNI152
+/// Hausdorff 0.52 -> 0.63 vx, mean distance 0.0855 -> 0.0870 mm.)
 const CHORD_OFFSET_ITERATIONS: u32 = 2;
 
 /// Islands (closed components without junctions) of at most this many
