@@ -76,7 +76,7 @@ pub struct RemeshOptions {
     pub smooth_iterations: Option<u32>,
     /// Largest displacement of a vertex by smoothing, in voxels per axis (default 0.5).
     pub max_displacement: Option<f64>,
-    /// Remeshing iterations (default 6).
+    /// Remeshing iterations (default 5).
     pub iterations: Option<u32>,
 }
 

@@ -124,7 +124,7 @@ pub struct ExtractArgs {
     /// How far smoothing may move a vertex, in voxels along each axis (default 0.5); keeps thin walls.
     #[arg(long, value_name = "VOXELS")]
     pub max_displacement: Option<f64>,
-    /// Split/collapse/flip/relax iterations of the remesher (default 6).
+    /// Split/collapse/flip/relax iterations of the remesher (default 5).
     #[arg(long, value_name = "N")]
     pub remesh_iterations: Option<u32>,
     /// Do not write preview.png (the patches drawn from four sides).

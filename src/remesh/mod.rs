@@ -92,7 +92,7 @@ impl Default for RemeshParams {
             min_edge: None,
             smooth_iterations: 10,
             max_displacement: 0.5,
-            iterations: 6,
+            iterations: 5,
         }
     }
 }
