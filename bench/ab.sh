@@ -2,10 +2,10 @@
 # bench/ab.sh: two septa binaries on one volume at the same time, one thread
 # each, so that whatever else the machine does slows both alike. On a shared
 # 2-core machine the same binary's wall time drifts by 10-20 % from one run
-# to the next (and more over an hour), which hides a 5-10 % change between
-# runs made one after the other; run side by side, the two CPU times compare
-# to within about 2 %. Whole volumes, natively: where instructions.sh would
-# take an hour under callgrind.
+# to the next (and more over an hour); run side by side, both see the same
+# machine. The same binary on both sides gave CPU ratios of 0.94-1.04, so
+# repeat with A and B swapped before trusting a change under 10 %. Whole
+# volumes, natively: where instructions.sh would take an hour under callgrind.
 #
 #   bench/ab.sh A_BINARY B_BINARY VOLUME [EXTRA SEPTA FLAGS...]
 #
