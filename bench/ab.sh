@@ -19,7 +19,7 @@
 # setting in an environment variable that only B sees, e.g.
 #   B_ENV="SOME_VAR=1" bench/ab.sh target/release/septa target/release/septa VOL
 set -euo pipefail
-[ $# -ge 3 ] || { sed -n '2,21p' "$0"; exit 2; }
+[ $# -ge 3 ] || { sed -n '2,20p' "$0"; exit 2; }
 a=$1; b=$2; vol=$3; shift 3
 for bin in "$a" "$b"; do
     [ -x "$bin" ] || { echo "ab.sh: $bin is not an executable" >&2; exit 2; }
